@@ -1,0 +1,1 @@
+"""Path classification: the streaming observer (numba) and the labeller."""

@@ -1,0 +1,184 @@
+"""The label vocabulary and the post-hoc labeller: observer slots -> fields -> labels.
+
+One vocabulary for store, plot and query: `LABELS` (shape words, then status words), with the int8
+codes stored in files. Shape and validity are separate: a launch that blew up, hit the Euler form's
+singularity, slipped, lifted off or rolled onto its flat face gets a status word, never a shape.
+
+How a label is decided (per-cycle quantities only, so a label does not change with T):
+1. status: non-finite -> `blew_up`; |theta| reached 90 deg -> `singular`; contact on the flat face
+   (theta_min below the ball's limit) -> `flat_face`; N <= 0 -> `lift_off`; max |F_h|/N > mu ->
+   `slipping`.
+2. theta range < `steady_theta_tol_deg` -> `circle` (steady rolling, Sec. III).
+3. fewer than `min_cycles` complete theta cycles -> `unresolved` (integrate longer).
+4. Let D be the net turn per theta cycle folded into (-180, 180] deg and n_sides = 360/|D|.
+   |D| > `star_min_turn_deg` -> `star` (e.g. 144 deg: a pentagram).
+   radius of the corner circle / side > `near_straight_ratio` -> `near_straight` (paper Fig. 7).
+   n_sides > `max_polygon_sides`, or no distinct corners -> `circle` (the paper's "approximately
+   circular", Fig. 9). Corners are distinct when the peak heading rate is at least
+   `corner_sharpness_min` times the mean rate of the path's heading change per cycle (raw turn /
+   period) and the heading turns mostly one way (|raw turn| / total absolute turning >=
+   `monotonicity_min`), or when the corner is a cusp. Fig. 9c fails the first (1.8), Fig. 9a the
+   second (0.63: it curves left and right within each cycle); the paper's square and triangle pass
+   both (3.2-3.4 and 0.98-1.0).
+   Otherwise the nearest whole n: 3 `triangle`, 4 `square`, else `ngon`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields
+
+import numpy as np
+
+from . import observer as ob
+
+SHAPES = ("circle", "near_straight", "triangle", "square", "ngon", "star")
+STATUSES = ("unresolved", "blew_up", "singular", "flat_face", "lift_off", "slipping")
+LABELS = SHAPES + STATUSES
+CODE = {w: i for i, w in enumerate(LABELS)}
+
+CORNER_KINDS = ("none", "rounded", "cusp", "loop")
+CORNER_CODE = {w: i for i, w in enumerate(CORNER_KINDS)}
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    """Classifier settings (all settable in a sweep spec's [classify] table)."""
+
+    mu: float = 0.3  #: friction coefficient: max |F_h|/N above it -> slipping
+    min_cycles: int = 2  #: complete theta cycles needed to label a shape
+    steady_theta_tol_deg: float = 0.5  #: theta range below it -> steady circle
+    star_min_turn_deg: float = 125.0  #: |net turn per cycle| above it -> star polygon
+    near_straight_ratio: float = 10.0  #: corner-circle radius / side above it -> near_straight
+    max_polygon_sides: float = 12.5  #: n_sides above it -> circle
+    corner_sharpness_min: float = 2.0  #: peak / mean heading rate below it -> no distinct corners
+    monotonicity_min: float = 0.75  #: |raw turn| / total turning below it -> no distinct corners
+    cusp_speed_ratio: float = 0.05  #: min speed / mean speed in a cycle below it -> cusp corner
+    max_star_points: int = 12  #: largest p searched for a star {p/q}
+
+    @classmethod
+    def from_mapping(cls, mapping: dict) -> "Thresholds":
+        names = {f.name: f.type for f in fields(cls)}
+        kw = {}
+        for key, value in mapping.items():
+            if key not in names:
+                raise ValueError(f"[classify] unknown key {key!r}; known: {', '.join(names)}")
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ValueError(f"[classify] {key} must be a number, got {value!r}")
+            if not math.isfinite(value) or value < 0:
+                raise ValueError(f"[classify] {key} must be finite and >= 0, got {value!r}")
+            kw[key] = int(value) if names[key] in ("int", int) else float(value)
+        return cls(**kw)
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def fold_deg(angle_deg):
+    """Fold angles into (-180, 180]."""
+    a = np.mod(np.asarray(angle_deg, dtype=float) + 180.0, 360.0) - 180.0
+    return np.where(a == -180.0, 180.0, a)
+
+
+def star_type(turn_deg: np.ndarray, max_points: int):
+    """Best {p/q} with p <= max_points for |turn| = 360 q / p; returns (p, q) arrays (0 if none)."""
+    x = np.abs(np.asarray(turn_deg, dtype=float)) / 360.0
+    best_p = np.zeros(x.shape, dtype=np.int16)
+    best_q = np.zeros(x.shape, dtype=np.int16)
+    best_err = np.full(x.shape, np.inf)
+    for p in range(2, max_points + 1):
+        q = np.rint(x * p)
+        err = np.abs(x * p - q) / p
+        better = (err < best_err - 1e-12) & (q >= 1) & (np.gcd(q.astype(int), p) == 1)
+        best_p = np.where(better, p, best_p)
+        best_q = np.where(better, q, best_q)
+        best_err = np.where(better, err, best_err)
+    return best_p, best_q
+
+
+def label_fields(obs: np.ndarray, flat_face_theta: np.ndarray, length_unit, time_unit,
+                 th: Thresholds = Thresholds()) -> dict:
+    """Turn observer slots (N_OBS, n) into labels and SI fields.
+
+    flat_face_theta: tilt (rad) below which the flat face touches the table, per launch or scalar.
+    length_unit (m) and time_unit (s): the ball's a and sqrt(a/g), per launch or scalar.
+    Returns a dict of 1-D arrays (names are the stored variable names, units in the suffix).
+    """
+    o = np.asarray(obs, dtype=float)
+    n = o.shape[1]
+    L = np.broadcast_to(np.asarray(length_unit, dtype=float), (n,))
+    Tu = np.broadcast_to(np.asarray(time_unit, dtype=float), (n,))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        n_cyc = np.maximum(o[ob.O_NMAX] - 1.0, 0.0)
+        has = n_cyc >= 1
+        period = np.where(has, (o[ob.O_TL] - o[ob.O_T1]) / np.where(has, n_cyc, 1.0), np.nan)
+        dchi = np.where(has, (o[ob.O_CHIL] - o[ob.O_CHI1]) / np.where(has, n_cyc, 1.0), np.nan)
+        turn = fold_deg(np.degrees(dchi))
+        turn = np.where(has, turn, np.nan)
+        abs_turn = np.abs(turn)
+        n_sides = 360.0 / abs_turn
+        side = np.hypot(o[ob.O_XL] - o[ob.O_XP], o[ob.O_YL] - o[ob.O_YP])
+        rho = side / (2.0 * np.sin(np.radians(abs_turn) / 2.0))  # radius of the corners' circle
+        raw = np.degrees(dchi) + 360.0 * o[ob.O_C_WIND]  # heading change of the path per cycle
+        loops = np.rint((raw - turn) / 360.0)
+        raw_rad = np.abs(np.radians(raw))
+        sharp = o[ob.O_C_PSID] * o[ob.O_C_DUR] / raw_rad  # peak / mean rate of the raw turn
+        monotone = raw_rad / o[ob.O_C_TURN]
+        cusp = o[ob.O_C_VMIN] < th.cusp_speed_ratio * o[ob.O_C_VMEAN]
+        star_p, star_q = star_type(turn, th.max_star_points)
+        # closure: how far a corner drifts per circuit of the nearest closed polygon / star
+        is_star = abs_turn > th.star_min_turn_deg
+        p_close = np.where(is_star, star_p, np.rint(n_sides))
+        q_close = np.where(is_star, star_q, 1)
+        delta = np.radians(p_close * abs_turn - 360.0 * q_close)
+        closure = np.abs(2.0 * rho * np.sin(delta / 2.0))
+        theta_range = np.degrees(o[ob.O_TH_MAX] - o[ob.O_TH_MIN])
+
+    steady = theta_range < th.steady_theta_tol_deg
+    kind = np.where(loops != 0, CORNER_CODE["loop"],
+                    np.where(cusp, CORNER_CODE["cusp"], CORNER_CODE["rounded"]))
+    kind = np.where(has & ~steady, kind, CORNER_CODE["none"]).astype(np.int8)
+
+    label = np.full(n, CODE["ngon"], dtype=np.int8)
+    nn = np.rint(n_sides)
+    label[nn == 4] = CODE["square"]
+    label[nn == 3] = CODE["triangle"]
+    distinct = (((sharp >= th.corner_sharpness_min) & (monotone >= th.monotonicity_min))
+                | (kind == CORNER_CODE["cusp"]))
+    label[(n_sides > th.max_polygon_sides) | ~distinct] = CODE["circle"]
+    label[rho / side > th.near_straight_ratio] = CODE["near_straight"]
+    label[is_star] = CODE["star"]
+    label[~has] = CODE["unresolved"]
+    label[n_cyc < th.min_cycles] = CODE["unresolved"]
+    label[steady] = CODE["circle"]
+    # validity overrides shape, least specific first so the most basic failure wins
+    status = o[ob.O_STATUS]
+    label[o[ob.O_FRIC] > th.mu] = CODE["slipping"]
+    label[o[ob.O_NMIN] <= 0.0] = CODE["lift_off"]
+    label[o[ob.O_TH_MIN] < np.broadcast_to(flat_face_theta, (n,))] = CODE["flat_face"]
+    label[status == ob.ST_SINGULAR] = CODE["singular"]
+    label[(status == ob.ST_NONFINITE) | ~np.isfinite(status)] = CODE["blew_up"]
+
+    e0 = o[ob.O_E0]
+    fin = lambda a: np.where(has & ~steady, a, np.nan)  # noqa: E731 - per-cycle fields
+    return {
+        "label": label,
+        "n_sides": fin(n_sides),
+        "turn_per_cycle_deg": fin(turn),
+        "theta_period_s": fin(period * Tu),
+        "side_m": fin(side * L),
+        "corner_kind": kind,
+        "corner_sharpness": fin(sharp),
+        "turn_monotonicity": fin(monotone),
+        "closure_m": fin(closure * L),
+        "loops_per_cycle": fin(loops),
+        "star_points": np.where(is_star & has, star_p, 0).astype(np.int16),
+        "star_step": np.where(is_star & has, star_q, 0).astype(np.int16),
+        "n_theta_cycles": n_cyc.astype(np.int32),
+        "theta_min_deg": np.degrees(o[ob.O_TH_MIN]),
+        "theta_max_deg": np.degrees(o[ob.O_TH_MAX]),
+        "max_friction_ratio": o[ob.O_FRIC],
+        "min_normal_force_ratio": o[ob.O_NMIN],
+        "energy_drift": o[ob.O_DE] / np.abs(e0),
+        "jellett_drift": o[ob.O_DJ],
+        "routh_drift": o[ob.O_DR],
+    }

@@ -1,0 +1,174 @@
+"""Streaming observer: per-launch reductions updated after every step, no trajectory kept.
+
+The observer is a column `obs[:, i]` of float64 slots per launch (names below). `observe` is fed the
+state and its accelerations at each sample; it tracks
+
+* theta extrema, the invariants' drift (energy, Jellett, Routh), friction demand |F_h|/N and min N;
+* theta maxima (events where thetadot turns from + to -): the first and last event's time, heading
+  chi and centre position, and the previous one (for the chord between successive maxima);
+* per theta cycle (between successive maxima): the peak heading rate of the path, the total
+  absolute turning, the smallest and mean speed, and the winding of the velocity relative to the
+  ball's heading (a loop corner); the last complete cycle's values are kept.
+
+Over one theta cycle the reduced state (theta, thetadot, chidot, phidot) returns to itself, so the
+path repeats rotated by the change of chi over the cycle: the net turn per cycle is
+(chi_last - chi_first) / (cycles), with no atan2 in the hot loop.
+
+All non-dimensional. Used by the ensemble kernel and, on stored samples, by `observe_samples`.
+"""
+from __future__ import annotations
+
+import math
+
+import numba as nb
+import numpy as np
+
+from ..physics.euler import accelerations
+
+# slot names, in order; the index constants below are generated from this one list
+SLOTS = (
+    "status", "t_stop",
+    "theta_min", "theta_max",
+    "e0", "j0", "r0", "de_max", "dj_max", "dr_max",
+    "friction_max", "normal_min",
+    "n_max", "t_first", "chi_first", "x_first", "y_first",
+    "t_last", "chi_last", "x_last", "y_last", "x_prev", "y_prev",
+    "acc_psid_max", "acc_turn_abs", "acc_v_min", "acc_v_int", "acc_quarter_turns",
+    "cyc_psid_max", "cyc_turn_abs", "cyc_v_min", "cyc_v_mean", "cyc_winding", "cyc_duration",
+    "p_thd", "p_t", "p_chi", "p_x", "p_y", "p_quadrant",
+)
+N_OBS = len(SLOTS)
+(O_STATUS, O_T_STOP, O_TH_MIN, O_TH_MAX, O_E0, O_J0, O_R0, O_DE, O_DJ, O_DR, O_FRIC, O_NMIN,
+ O_NMAX, O_T1, O_CHI1, O_X1, O_Y1, O_TL, O_CHIL, O_XL, O_YL, O_XP, O_YP,
+ O_A_PSID, O_A_TURN, O_A_VMIN, O_A_VINT, O_A_QUART,
+ O_C_PSID, O_C_TURN, O_C_VMIN, O_C_VMEAN, O_C_WIND, O_C_DUR,
+ O_P_THD, O_P_T, O_P_CHI, O_P_X, O_P_Y, O_P_QUAD) = range(N_OBS)
+
+# status codes written by the kernel (the labeller maps them to words)
+ST_RUNNING = 0.0
+ST_NONFINITE = 1.0
+ST_SINGULAR = 2.0
+
+jit = nb.njit(cache=True, nogil=True, error_model="numpy")
+
+
+@jit
+def _quadrant(u, w):
+    """Quadrant 0..3 of the vector (u, w), counter-clockwise from +u."""
+    if w >= 0.0:
+        return 0.0 if u > 0.0 else 1.0
+    return 2.0 if u <= 0.0 else 3.0
+
+
+@jit
+def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, chdd, phdd, c, A, B):
+    """Update launch i's slots with one sample (time t, step dt since the previous sample)."""
+    # --- speeds in the frame turning with the heading chi (Eqs. 6-7) and their rates -----------
+    a1 = 1.0 - c * sth
+    u = (phd - c * chd) * cth
+    w = a1 * thd
+    ud = (phdd - c * chdd) * cth - (phd - c * chd) * sth * thd
+    wd = -c * cth * thd * thd + a1 * thdd
+    v2 = u * u + w * w
+    speed = math.sqrt(v2)
+    psid = chd + (u * wd - w * ud) / v2 if v2 > 0.0 else chd  # heading rate of the path
+    ah_par = ud - w * chd
+    ah_perp = wd + u * chd
+    normal = 1.0 + c * (sth * thd * thd - cth * thdd)  # N / (M g), Eq. (20)
+    fric = math.sqrt(ah_par * ah_par + ah_perp * ah_perp) / normal if normal > 0.0 else math.inf
+    # --- invariants -----------------------------------------------------------------------------
+    w_eta = phd - chd * sth
+    e = (0.5 * A * (thd * thd + chd * chd * cth * cth) + 0.5 * B * w_eta * w_eta
+         + 0.5 * ((phd - c * chd) ** 2 * cth * cth + (1.0 - 2.0 * c * sth + c * c) * thd * thd)
+         + a1)
+    jel = B * w_eta * (sth - c) - A * chd * cth * cth
+    rou = w_eta * math.sqrt(A * B + A * cth * cth + B * (sth - c) ** 2)
+    quad = _quadrant(u, w)
+    if first:
+        obs[O_STATUS, i] = ST_RUNNING
+        obs[O_T_STOP, i] = math.nan
+        obs[O_TH_MIN, i] = th
+        obs[O_TH_MAX, i] = th
+        obs[O_E0, i], obs[O_J0, i], obs[O_R0, i] = e, jel, rou
+        obs[O_DE, i] = obs[O_DJ, i] = obs[O_DR, i] = 0.0
+        obs[O_FRIC, i] = fric
+        obs[O_NMIN, i] = normal
+        obs[O_NMAX, i] = 0.0
+        for k in range(O_T1, O_YP + 1):
+            obs[k, i] = math.nan
+        obs[O_A_PSID, i] = 0.0
+        obs[O_A_TURN, i] = 0.0
+        obs[O_A_VMIN, i] = speed
+        obs[O_A_VINT, i] = 0.0
+        obs[O_A_QUART, i] = 0.0
+        for k in range(O_C_PSID, O_C_DUR + 1):
+            obs[k, i] = math.nan
+    else:
+        obs[O_TH_MIN, i] = min(obs[O_TH_MIN, i], th)
+        obs[O_TH_MAX, i] = max(obs[O_TH_MAX, i], th)
+        obs[O_DE, i] = max(obs[O_DE, i], abs(e - obs[O_E0, i]))
+        obs[O_DJ, i] = max(obs[O_DJ, i], abs(jel - obs[O_J0, i]))
+        obs[O_DR, i] = max(obs[O_DR, i], abs(rou - obs[O_R0, i]))
+        obs[O_FRIC, i] = max(obs[O_FRIC, i], fric)
+        obs[O_NMIN, i] = min(obs[O_NMIN, i], normal)
+        # per-cycle accumulators (rectangle rule over the previous interval)
+        obs[O_A_PSID, i] = max(obs[O_A_PSID, i], abs(psid))
+        obs[O_A_TURN, i] += abs(psid) * dt
+        obs[O_A_VMIN, i] = min(obs[O_A_VMIN, i], speed)
+        obs[O_A_VINT, i] += speed * dt
+        dq = quad - obs[O_P_QUAD, i]
+        if dq > 2.0:
+            dq -= 4.0
+        elif dq < -2.0:
+            dq += 4.0
+        if abs(dq) < 2.0:  # a jump of two quadrants passes through v = 0: a cusp, not a turn
+            obs[O_A_QUART, i] += dq
+        # --- theta maximum: thetadot turns from + to - ----------------------------------------
+        pthd = obs[O_P_THD, i]
+        if pthd > 0.0 and thd <= 0.0:
+            f = pthd / (pthd - thd)
+            t_ev = obs[O_P_T, i] + f * (t - obs[O_P_T, i])
+            chi_ev = obs[O_P_CHI, i] + f * (chi - obs[O_P_CHI, i])
+            x_ev = obs[O_P_X, i] + f * (x - obs[O_P_X, i])
+            y_ev = obs[O_P_Y, i] + f * (y - obs[O_P_Y, i])
+            if obs[O_NMAX, i] == 0.0:
+                obs[O_T1, i], obs[O_CHI1, i], obs[O_X1, i], obs[O_Y1, i] = t_ev, chi_ev, x_ev, y_ev
+            else:  # the accumulators hold one complete cycle
+                obs[O_C_PSID, i] = obs[O_A_PSID, i]
+                obs[O_C_TURN, i] = obs[O_A_TURN, i]
+                obs[O_C_VMIN, i] = obs[O_A_VMIN, i]
+                dur = t_ev - obs[O_TL, i]
+                obs[O_C_VMEAN, i] = obs[O_A_VINT, i] / dur
+                obs[O_C_WIND, i] = obs[O_A_QUART, i] / 4.0
+                obs[O_C_DUR, i] = dur
+                obs[O_XP, i], obs[O_YP, i] = obs[O_XL, i], obs[O_YL, i]
+            obs[O_TL, i], obs[O_CHIL, i], obs[O_XL, i], obs[O_YL, i] = t_ev, chi_ev, x_ev, y_ev
+            obs[O_NMAX, i] += 1.0
+            obs[O_A_PSID, i] = abs(psid)
+            obs[O_A_TURN, i] = 0.0
+            obs[O_A_VMIN, i] = speed
+            obs[O_A_VINT, i] = 0.0
+            obs[O_A_QUART, i] = 0.0
+    obs[O_P_THD, i] = thd
+    obs[O_P_T, i] = t
+    obs[O_P_CHI, i] = chi
+    obs[O_P_X, i] = x
+    obs[O_P_Y, i] = y
+    obs[O_P_QUAD, i] = quad
+
+
+@jit
+def observe_samples(t, x, y, theta, chi, thd, chd, phd, params):
+    """Run the observer over stored samples of one trajectory (post-hoc classification).
+
+    Arrays are non-dimensional Euler-state samples; returns the observer column (N_OBS,).
+    """
+    obs = np.empty((N_OBS, 1))
+    c, A, B = params[0], params[1], params[2]
+    for n in range(t.shape[0]):
+        sth, cth = math.sin(theta[n]), math.cos(theta[n])
+        thdd, chdd, phdd = accelerations(sth, cth, thd[n], chd[n], phd[n], c, A, B)
+        dt = t[n] - t[n - 1] if n > 0 else 0.0
+        observe(obs, 0, n == 0, t[n], dt, x[n], y[n], theta[n], sth, cth, chi[n], thd[n], chd[n], phd[n],
+                thdd, chdd, phdd, c, A, B)
+    return obs[:, 0]

@@ -1,0 +1,1 @@
+"""Numba integrators: Butcher tableaus, the ensemble kernel, the naive baseline."""

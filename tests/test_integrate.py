@@ -1,0 +1,125 @@
+"""The ensemble kernel: convergence orders, invariants' drift, agreement with independent steppers,
+determinism under chunking and threading, and the flags for blown-up and singular launches."""
+import math
+
+import numba
+import numpy as np
+import pytest
+
+from ballsurvey.ball import Ball
+from ballsurvey.classify import observer as ob
+from ballsurvey.integrate import ensemble, naive
+from ballsurvey.integrate.tableaus import FIXED_STEP
+from ballsurvey.physics import fixed
+
+B = Ball.paper()
+P = B.nondim_params()
+TU = B.time_unit
+U12A = np.array([0, 0, math.radians(-5), 0, 0, 0, 4.05 * TU, -3 * TU])  # Fig. 12a, non-dim
+
+
+def run(u0, T_s, dt_s, method="rk4", **kw):
+    n = int(round(T_s / dt_s))
+    y0 = ensemble.fast_state(*[u0[k] for k in range(8)])
+    kw.setdefault("parallel", False)
+    ye, obs, traj = ensemble.integrate(y0, np.repeat(P[:, None], y0.shape[1], 1), T_s / TU / n, n,
+                                       method, **kw)
+    return ye, obs, traj
+
+
+@pytest.mark.parametrize("method", ["rk4", "rk38", "ssprk3", "heun"])
+def test_global_error_order(method):
+    # Fig. 12a over 1 s (through its first corner, theta up to 86 deg); error at T against a run
+    # with a 16x smaller step of the same method
+    order = FIXED_STEP[method].order
+    dts = [1e-3, 5e-4, 2.5e-4] if order >= 3 else [2e-4, 1e-4, 5e-5]
+    ref = run(U12A, 1.0, dts[-1] / 16, method)[0][:8, 0]
+    errs = [np.abs(run(U12A, 1.0, dt, method)[0][:8, 0] - ref).max() for dt in dts]
+    ratio = errs[-2] / errs[-1]
+    assert abs(math.log2(ratio) - order) < 0.4, (errs, ratio)
+
+
+def test_rk4_error_falls_by_16_per_halving():
+    dts = [5e-4, 2.5e-4]
+    ref = naive.rk4_euler(U12A, P, 1.0 / TU / 32000, 32000)  # independent stepper, dt = 3.1e-5 s
+    errs = [np.abs(run(U12A, 1.0, dt)[0][:8, 0] - ref).max() for dt in dts]
+    assert 13.0 < errs[0] / errs[1] < 19.0, errs
+
+
+def test_invariant_drift_shrinks_like_dt4():
+    # Fig. 12a, T = 20 s: energy, Jellett and Routh drift (max over the run) at dt and dt/2
+    drifts = []
+    for dt in (1.25e-4, 6.25e-5):
+        obs = run(U12A, 20.0, dt, observe_every=1)[1][:, 0]
+        drifts.append(np.array([obs[ob.O_DE], obs[ob.O_DJ], obs[ob.O_DR]]))
+    orders = np.log2(drifts[0] / drifts[1])
+    assert np.all((orders > 3.6) & (orders < 4.6)), orders
+    assert np.all(drifts[1] < 1e-9)
+
+
+def test_fast_state_agrees_with_euler_angle_rk4():
+    # the sin/cos-carrying state and the paper's Euler-angle state, same RK4, 20 s square path
+    ye = run(U12A, 20.0, 1e-4)[0][:8, 0]
+    ue = naive.rk4_euler(U12A, P, 1e-4 / TU, 200000)
+    assert np.hypot(ye[0] - ue[0], ye[1] - ue[1]) * B.a < 1e-8
+
+
+def test_euler_and_fixed_frame_trajectories_agree():
+    n, every = 50000, 5000  # 5 s at dt = 1e-4 s
+    v = naive.rk4_fixed_frame(fixed.euler_to_fixed(U12A), P, 1e-4 / TU, n, every)
+    ye, _, traj = run(U12A, 5.0, 1e-4, n_rec=n // every + 1, stride=every)
+    for k in range(v.shape[0]):
+        e = fixed.fixed_to_euler(v[k], traj[k, ensemble.S_CHI, 0], traj[k, ensemble.S_PHI, 0])
+        assert np.abs(e[:2] - traj[k, :2, 0]).max() * B.a < 1e-8  # position, m
+        assert np.abs(e[2:5] - traj[k, 2:5, 0]).max() < 1e-6  # angles, rad
+
+
+def _launches(n=37, seed=4):
+    rng = np.random.default_rng(seed)
+    return ensemble.fast_state(0, 0, np.radians(rng.uniform(-10, 40, n)), 0, 0,
+                               rng.normal(0, 1, n) * TU, rng.uniform(-12, 12, n) * TU,
+                               rng.uniform(-8, 0, n) * TU)
+
+
+def test_results_independent_of_block_size_and_threads():
+    y0 = _launches()
+    params = np.repeat(P[:, None], y0.shape[1], 1)
+    dt, n = 1e-3 / TU, 3000
+    ref = ensemble.integrate(y0, params, dt, n, block=64, parallel=False, observe_every=3)
+    runs = [ensemble.integrate(y0, params, dt, n, block=b, parallel=False, observe_every=3)
+            for b in (1, 5)]
+    old = numba.get_num_threads()
+    try:
+        for threads in sorted({1, old}):
+            numba.set_num_threads(threads)
+            runs.append(ensemble.integrate(y0, params, dt, n, block=4, observe_every=3))
+    finally:
+        numba.set_num_threads(old)
+    # a launch's result does not depend on its neighbours: run a slice alone
+    alone = ensemble.integrate(y0[:, 10:13], params[:, 10:13], dt, n, block=64, parallel=False,
+                               observe_every=3)
+    for got in runs:
+        for a, b in zip(ref[:2], got[:2]):
+            assert np.array_equal(a, b, equal_nan=True)
+    assert np.array_equal(alone[0], ref[0][:, 10:13], equal_nan=True)
+    assert np.array_equal(alone[1], ref[1][:, 10:13], equal_nan=True)
+
+
+def test_blow_up_is_flagged_and_others_go_on():
+    y0 = _launches(8)
+    y0[ensemble.S_CHD, 3] = 400 * TU  # far too fast for dt = 0.02 s
+    params = np.repeat(P[:, None], 8, 1)
+    dt, n = 0.02 / TU, 500
+    _, obs, _ = ensemble.integrate(y0, params, dt, n, parallel=False)
+    assert obs[ob.O_STATUS, 3] == ob.ST_NONFINITE
+    assert 0 < obs[ob.O_T_STOP, 3] < n * dt
+    good = [0, 1, 2, 4, 5, 6, 7]
+    _, alone, _ = ensemble.integrate(y0[:, good], params[:, good], dt, n, parallel=False)
+    assert np.array_equal(alone, obs[:, good], equal_nan=True)
+
+
+def test_tilt_reaching_90_deg_is_flagged_singular():
+    y0 = ensemble.fast_state(0, 0, math.radians(85.0), 0, 0, 3.0 * TU, 0.0, 0.0)
+    _, obs, _ = ensemble.integrate(y0, P[:, None], 1e-4 / TU, 20000, parallel=False)
+    assert obs[ob.O_STATUS, 0] == ob.ST_SINGULAR
+    assert math.degrees(obs[ob.O_TH_MAX, 0]) > 85.0
