@@ -5,22 +5,29 @@ codes stored in files. Shape and validity are separate: a launch that blew up, h
 singularity, slipped, lifted off or rolled onto its flat face gets a status word, never a shape.
 
 How a label is decided (per-cycle quantities only, so a label does not change with T):
-1. status: non-finite -> `blew_up`; |theta| reached 90 deg -> `singular`; contact on the flat face
-   (theta_min below the ball's limit) -> `flat_face`; N <= 0 -> `lift_off`; max |F_h|/N > mu ->
-   `slipping`.
+1. status, first match wins: non-finite -> `blew_up`; contact on the flat face (theta_min below
+   the ball's limit) -> `flat_face`; |theta| reached 90 deg -> `singular`; N <= 0 -> `lift_off`;
+   max |F_h|/N > mu -> `slipping`.
 2. theta range < `steady_theta_tol_deg` -> `circle` (steady rolling, Sec. III).
 3. fewer than `min_cycles` complete theta cycles -> `unresolved` (integrate longer).
 4. Let D be the net turn per theta cycle folded into (-180, 180] deg and n_sides = 360/|D|.
-   |D| > `star_min_turn_deg` -> `star` (e.g. 144 deg: a pentagram).
    radius of the corner circle / side > `near_straight_ratio` -> `near_straight` (paper Fig. 7).
-   n_sides > `max_polygon_sides`, or no distinct corners -> `circle` (the paper's "approximately
+   No distinct corners, or n_sides > `max_polygon_sides` -> `circle` (the paper's "approximately
    circular", Fig. 9). Corners are distinct when the peak heading rate is at least
    `corner_sharpness_min` times the mean rate of the path's heading change per cycle (raw turn /
    period) and the heading turns mostly one way (|raw turn| / total absolute turning >=
    `monotonicity_min`), or when the corner is a cusp. Fig. 9c fails the first (1.8), Fig. 9a the
    second (0.63: it curves left and right within each cycle); the paper's square and triangle pass
    both (3.2-3.4 and 0.98-1.0).
-   Otherwise the nearest whole n: 3 `triangle`, 4 `square`, else `ngon`.
+   Otherwise |D| > `star_min_turn_deg` -> `star` {p/q} (144 deg: a pentagram {5/2}); else the
+   nearest whole n: 3 `triangle`, 4 `square`, else `ngon`. A steady wobble whose heading turns
+   evenly through 140 deg per cycle is a circle, not a star: it has no distinct corners.
+5. Corner kind: `loop` when the path's heading turns through a whole extra turn per cycle
+   (raw turn = D + 360 k, k != 0: the velocity winds once around relative to the ball's heading),
+   `cusp` when the speed nearly vanishes (min / mean speed < `cusp_speed_ratio`), else `rounded`.
+
+The classifier needs `min_cycles` (default 2) complete theta cycles, i.e. three theta maxima, within
+T: about 2 s for the paper's ball at its square and triangle launches (theta period 0.57-0.63 s).
 """
 from __future__ import annotations
 
@@ -145,8 +152,8 @@ def label_fields(obs: np.ndarray, flat_face_theta: np.ndarray, length_unit, time
     distinct = (((sharp >= th.corner_sharpness_min) & (monotone >= th.monotonicity_min))
                 | (kind == CORNER_CODE["cusp"]))
     label[(n_sides > th.max_polygon_sides) | ~distinct] = CODE["circle"]
+    label[is_star & distinct] = CODE["star"]
     label[rho / side > th.near_straight_ratio] = CODE["near_straight"]
-    label[is_star] = CODE["star"]
     label[~has] = CODE["unresolved"]
     label[n_cyc < th.min_cycles] = CODE["unresolved"]
     label[steady] = CODE["circle"]
@@ -154,8 +161,10 @@ def label_fields(obs: np.ndarray, flat_face_theta: np.ndarray, length_unit, time
     status = o[ob.O_STATUS]
     label[o[ob.O_FRIC] > th.mu] = CODE["slipping"]
     label[o[ob.O_NMIN] <= 0.0] = CODE["lift_off"]
-    label[o[ob.O_TH_MIN] < np.broadcast_to(flat_face_theta, (n,))] = CODE["flat_face"]
     label[status == ob.ST_SINGULAR] = CODE["singular"]
+    # touching the flat face invalidates the model from then on, so whatever followed (even the
+    # Euler singularity) is its consequence; only a numerical blow-up is reported before it
+    label[o[ob.O_TH_MIN] < np.broadcast_to(flat_face_theta, (n,))] = CODE["flat_face"]
     label[(status == ob.ST_NONFINITE) | ~np.isfinite(status)] = CODE["blew_up"]
 
     e0 = o[ob.O_E0]
@@ -171,8 +180,8 @@ def label_fields(obs: np.ndarray, flat_face_theta: np.ndarray, length_unit, time
         "turn_monotonicity": fin(monotone),
         "closure_m": fin(closure * L),
         "loops_per_cycle": fin(loops),
-        "star_points": np.where(is_star & has, star_p, 0).astype(np.int16),
-        "star_step": np.where(is_star & has, star_q, 0).astype(np.int16),
+        "star_points": np.where(label == CODE["star"], star_p, 0).astype(np.int16),
+        "star_step": np.where(label == CODE["star"], star_q, 0).astype(np.int16),
         "n_theta_cycles": n_cyc.astype(np.int32),
         "theta_min_deg": np.degrees(o[ob.O_TH_MIN]),
         "theta_max_deg": np.degrees(o[ob.O_TH_MAX]),
