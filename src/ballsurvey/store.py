@@ -1,0 +1,65 @@
+"""The result schema: variable names, dtypes, units, CF attributes, flag values and meanings.
+
+One place for what a stored map means; the sweep engine fills it, plot and query read it.
+Files follow CF-1.10 (checked in the tests with the IOOS compliance-checker).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .classify.labels import CORNER_KINDS, LABELS
+
+CONVENTIONS = "CF-1.10"
+REFERENCES = ("M. S. Wheatland, R. C. Cross et al., Rolling along a square path: the dynamics of "
+              "biased balls, Am. J. Phys. 88, 465 (2020), doi:10.1119/10.0000905")
+
+#: name -> (dtype, units or None, long_name, extra attributes)
+RESULT_VARIABLES = {
+    "label": ("i1", None, "path shape, or the status that replaces it",
+              {"flag_values": np.arange(len(LABELS), dtype=np.int8),
+               "flag_meanings": " ".join(LABELS)}),
+    "n_sides": ("f8", "1", "360 deg over the absolute net turn per theta cycle", {}),
+    "turn_per_cycle_deg": ("f8", "degree",
+                           "net turn of the path per theta cycle, folded into (-180, 180], "
+                           "counter-clockwise positive seen from above", {}),
+    "theta_period_s": ("f8", "s", "period of the tilt theta", {}),
+    "side_m": ("f8", "m", "chord between successive theta maxima (polygon side)", {}),
+    "corner_kind": ("i1", None, "kind of corner",
+                    {"flag_values": np.arange(len(CORNER_KINDS), dtype=np.int8),
+                     "flag_meanings": " ".join(CORNER_KINDS)}),
+    "corner_sharpness": ("f8", "1", "peak over mean heading rate of the path per cycle", {}),
+    "turn_monotonicity": ("f8", "1", "net heading change over total absolute turning per cycle", {}),
+    "closure_m": ("f8", "m", "drift of a corner per circuit of the nearest closed polygon or star", {}),
+    "loops_per_cycle": ("f8", "1", "whole extra turns of the heading per cycle (loop corners)", {}),
+    "star_points": ("i2", "1", "p of the star polygon {p/q} (0 if not a star)", {}),
+    "star_step": ("i2", "1", "q of the star polygon {p/q} (0 if not a star)", {}),
+    "n_theta_cycles": ("i4", "1", "complete theta cycles observed", {}),
+    "theta_min_deg": ("f8", "degree", "smallest tilt theta reached", {}),
+    "theta_max_deg": ("f8", "degree", "largest tilt theta reached", {}),
+    "max_friction_ratio": ("f8", "1", "largest friction demand |F_h|/N", {}),
+    "min_normal_force_ratio": ("f8", "1", "smallest normal force over M g", {}),
+    "energy_drift": ("f8", "1", "largest |E - E0| / |E0| (energy, Eqs. 11-12)", {}),
+    "jellett_drift": ("f8", "kg m3 s-1", "largest |J - J0| (Jellett's integral)", {}),
+    "routh_drift": ("f8", "kg m2 s-1", "largest |R - R0| (Routh's integral)", {}),
+    "t_stop_s": ("f8", "s", "time at which a blown-up or singular launch was stopped", {}),
+}
+
+DEFAULT_VARIABLES = tuple(RESULT_VARIABLES)
+
+FILL = {"i1": np.int8(-1), "i2": np.int16(-1), "i4": np.int32(-1), "f8": np.nan}
+
+
+def variable_attrs(name: str) -> dict:
+    dtype, units, long_name, extra = RESULT_VARIABLES[name]
+    attrs = {"long_name": long_name}
+    if units is not None:
+        attrs["units"] = units
+    attrs.update(extra)
+    return attrs
+
+
+def decode_label(codes) -> np.ndarray:
+    """int8 label codes -> label words ('' for unwritten cells)."""
+    codes = np.asarray(codes)
+    words = np.array(LABELS + ("",), dtype=object)
+    return words[np.where((codes >= 0) & (codes < len(LABELS)), codes, len(LABELS))]

@@ -1,0 +1,296 @@
+"""Sweep specs: TOML in, a validated `Spec` out. Every problem is one line naming the key.
+
+Format (all keys documented in README.md, "Sweep spec"):
+
+    title = "..."
+    [ball]      preset = "paper" | a, c, M, A, B (SI), g, cut_height | a, cut_height, M (geometry)
+    [launch]    grid axes: theta0_deg, thetadot0, chidot0, phidot0 (rad/s), each a number, a list
+                or {start, stop, num}; chi0_deg (a number); ball axes c, cut_height, M, A, B (SI)
+    [[points]]  instead of [launch]: name, theta0_deg, thetadot0, chidot0, phidot0, chi0_deg
+    [run]       T (s), dt (s), method, observe_every, block, chunk
+    [classify]  thresholds (see classify.labels.Thresholds)
+    [output]    file, variables, compression
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import tomllib
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from ..ball import PRESETS, Ball
+from ..classify.labels import Thresholds
+from ..integrate.tableaus import FIXED_STEP
+from ..store import DEFAULT_VARIABLES, RESULT_VARIABLES
+
+LAUNCH_AXES = ("theta0_deg", "thetadot0", "chidot0", "phidot0")
+BALL_AXES = ("c", "cut_height", "M", "A", "B")
+AXIS_UNITS = {"theta0_deg": "degree", "thetadot0": "rad s-1", "chidot0": "rad s-1",
+              "phidot0": "rad s-1", "c": "m", "cut_height": "m", "M": "kg", "A": "kg m2",
+              "B": "kg m2", "chi0_deg": "degree"}
+AXIS_LONG_NAMES = {
+    "theta0_deg": "initial tilt of the symmetry axis (theta0)",
+    "thetadot0": "initial rate of tilt (thetadot0)",
+    "chidot0": "initial precession rate (chidot0)",
+    "phidot0": "initial spin rate about the symmetry axis (phidot0)",
+    "chi0_deg": "initial heading (chi0)",
+    "c": "offset of the centre of mass from the centre", "cut_height": "height of the cut cap",
+    "M": "mass", "A": "transverse moment of inertia about G", "B": "axial moment of inertia about G",
+}
+BALL_KEYS = ("preset", "a", "c", "M", "A", "B", "g", "cut_height")
+RUN_KEYS = ("T", "dt", "method", "observe_every", "block", "chunk")
+OUTPUT_KEYS = ("file", "variables", "compression")
+POINT_KEYS = ("name",) + LAUNCH_AXES + ("chi0_deg",)
+TOP_KEYS = ("title", "ball", "launch", "points", "run", "classify", "output")
+
+
+class SpecError(ValueError):
+    """A spec problem; the message names the file, the key and what is wrong."""
+
+
+@dataclass(frozen=True)
+class Spec:
+    text: str
+    source: str
+    title: str
+    ball: Ball
+    kind: str  # "grid" or "points"
+    axes: dict  # grid: name -> 1-D float array (launch axes first, then ball axes)
+    points: dict  # points: name -> array (names: str array)
+    chi0_deg: float
+    T: float
+    dt: float
+    method: str
+    observe_every: int
+    block: int
+    chunk: int
+    thresholds: Thresholds
+    output: Path
+    variables: tuple
+    compression: int
+    digest: str = field(default="")
+
+    @property
+    def shape(self) -> tuple:
+        if self.kind == "grid":
+            return tuple(len(v) for v in self.axes.values())
+        return (len(self.points["name"]),)
+
+    @property
+    def dims(self) -> tuple:
+        return tuple(self.axes) if self.kind == "grid" else ("launch",)
+
+    @property
+    def n_launches(self) -> int:
+        return int(np.prod(self.shape))
+
+
+def _err(src, where, msg):
+    raise SpecError(f"{src}: {where}: {msg}")
+
+
+def _number(src, where, v, *, positive=False, integer=False):
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        _err(src, where, f"must be a number, got {type(v).__name__} {v!r}")
+    if not math.isfinite(v):
+        _err(src, where, f"must be finite, got {v!r}")
+    if positive and v <= 0:
+        _err(src, where, f"must be > 0, got {v!r}")
+    if integer:
+        if int(v) != v:
+            _err(src, where, f"must be a whole number, got {v!r}")
+        return int(v)
+    return float(v)
+
+
+def _unknown(src, section, table, allowed):
+    for k in table:
+        if k not in allowed:
+            _err(src, f"{section}{k}", f"unknown key; allowed: {', '.join(allowed)}")
+
+
+def _axis(src, where, v):
+    """A number, a list of numbers, or {start, stop, num} -> sorted-as-given 1-D array."""
+    if isinstance(v, dict):
+        _unknown(src, f"{where}.", v, ("start", "stop", "num"))
+        for k in ("start", "stop", "num"):
+            if k not in v:
+                _err(src, where, f"a range needs start, stop and num (missing {k})")
+        start = _number(src, f"{where}.start", v["start"])
+        stop = _number(src, f"{where}.stop", v["stop"])
+        num = _number(src, f"{where}.num", v["num"], integer=True)
+        if num < 1:
+            _err(src, f"{where}.num", f"must be >= 1, got {num}")
+        if num > 1 and not start < stop:
+            _err(src, where, f"empty or reversed range: start={start} must be < stop={stop}")
+        return np.linspace(start, stop, num)
+    if isinstance(v, list):
+        if not v:
+            _err(src, where, "empty list")
+        vals = np.array([_number(src, f"{where}[{i}]", x) for i, x in enumerate(v)])
+        if len(np.unique(vals)) != len(vals):
+            _err(src, where, "repeated values")
+        return vals
+    return np.array([_number(src, where, v)])
+
+
+def _ball(src, table) -> Ball:
+    _unknown(src, "[ball] ", table, BALL_KEYS)
+    if "preset" in table:
+        if set(table) != {"preset"}:
+            _err(src, "[ball]", "give either preset or parameters, not both")
+        name = table["preset"]
+        if name not in PRESETS:
+            _err(src, "[ball] preset", f"unknown preset {name!r}; known: {', '.join(PRESETS)}")
+        return PRESETS[name]()
+    vals = {k: _number(src, f"[ball] {k}", v, positive=k not in ("c", "cut_height"))
+            for k, v in table.items()}
+    try:
+        if set(vals) <= {"a", "cut_height", "M", "g"} and {"a", "cut_height", "M"} <= set(vals):
+            return Ball.from_geometry(**vals)
+        missing = [k for k in ("a", "c", "M", "A", "B") if k not in vals]
+        if missing:
+            _err(src, "[ball]", f"missing {', '.join(missing)} (or give preset, or a, cut_height, M)")
+        vals.setdefault("cut_height", 0.0)
+        return Ball(**vals)
+    except ValueError as exc:
+        if isinstance(exc, SpecError):
+            raise
+        _err(src, "[ball]", str(exc))
+
+
+def _check_tilts(src, where, theta0_deg, balls_flat_deg):
+    th = np.asarray(theta0_deg)
+    if np.any(np.abs(th) >= 90.0):
+        _err(src, where, f"|theta0| must be < 90 deg (the Euler form is singular there); "
+                         f"got {th[np.abs(th) >= 90.0][0]!r}")
+    lim = max(balls_flat_deg)
+    if np.any(th < lim):
+        _err(src, where, f"theta0 = {th.min()!r} deg rests the ball on its flat face "
+                         f"(below {lim:.2f} deg the rolling model does not hold)")
+
+
+def load_spec(path, *, text: str | None = None) -> Spec:
+    """Read and validate a spec file (or its `text`). Raises SpecError (one line) on any problem."""
+    src = str(path)
+    if text is None:
+        try:
+            text = Path(path).read_text()
+        except OSError as exc:
+            raise SpecError(f"{src}: cannot read: {exc.strerror}") from None
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SpecError(f"{src}: not valid TOML: {exc}") from None
+    _unknown(src, "", doc, TOP_KEYS)
+    for sec in ("ball", "launch", "run", "classify", "output"):
+        if sec in doc and not isinstance(doc[sec], dict):
+            _err(src, f"[{sec}]", "must be a table")
+    title = doc.get("title", Path(src).stem)
+    if not isinstance(title, str):
+        _err(src, "title", "must be a string")
+    base_ball = _ball(src, doc.get("ball", {"preset": "paper"}))
+
+    # ---- launches --------------------------------------------------------------------------
+    if ("launch" in doc) == ("points" in doc):
+        _err(src, "[launch]/[[points]]", "give exactly one of a [launch] grid or [[points]]")
+    axes, points, chi0 = {}, {}, 0.0
+    if "launch" in doc:
+        kind = "grid"
+        launch = doc["launch"]
+        _unknown(src, "[launch] ", launch, LAUNCH_AXES + ("chi0_deg",) + BALL_AXES)
+        for k in LAUNCH_AXES:
+            if k not in launch:
+                _err(src, f"[launch] {k}", "missing (give a number, a list or {start, stop, num})")
+            axes[k] = _axis(src, f"[launch] {k}", launch[k])
+        for k in BALL_AXES:
+            if k in launch:
+                axes[k] = _axis(src, f"[launch] {k}", launch[k])
+        chi0 = _number(src, "[launch] chi0_deg", launch.get("chi0_deg", 0.0))
+        ball_axes = [k for k in BALL_AXES if k in axes]
+        flat = []
+        for combo in np.stack(np.meshgrid(*[axes[k] for k in ball_axes], indexing="ij"), -1).reshape(
+                -1, len(ball_axes)) if ball_axes else [()]:
+            try:
+                b = replace(base_ball, **dict(zip(ball_axes, map(float, combo))))
+            except ValueError as exc:
+                _err(src, "[launch] " + "/".join(ball_axes), f"gives an invalid ball: {exc}")
+            flat.append(math.degrees(b.flat_face_theta_rad))
+        _check_tilts(src, "[launch] theta0_deg", axes["theta0_deg"], flat)
+    else:
+        kind = "points"
+        pts = doc["points"]
+        if not isinstance(pts, list) or not pts:
+            _err(src, "[[points]]", "must be a non-empty array of tables")
+        cols = {k: [] for k in POINT_KEYS}
+        for i, pt in enumerate(pts):
+            if not isinstance(pt, dict):
+                _err(src, f"[[points]] #{i + 1}", "must be a table")
+            _unknown(src, f"[[points]] #{i + 1} ", pt, POINT_KEYS)
+            name = pt.get("name", f"point{i + 1}")
+            if not isinstance(name, str) or not name:
+                _err(src, f"[[points]] #{i + 1} name", "must be a non-empty string")
+            cols["name"].append(name)
+            for k in LAUNCH_AXES:
+                if k not in pt:
+                    _err(src, f"[[points]] {name!r} {k}", "missing")
+                cols[k].append(_number(src, f"[[points]] {name!r} {k}", pt[k]))
+            cols["chi0_deg"].append(_number(src, f"[[points]] {name!r} chi0_deg",
+                                            pt.get("chi0_deg", 0.0)))
+        if len(set(cols["name"])) != len(cols["name"]):
+            _err(src, "[[points]] name", "names must be unique")
+        points = {k: np.array(v, dtype=object if k == "name" else float) for k, v in cols.items()}
+        points["name"] = np.array(cols["name"], dtype=str)
+        _check_tilts(src, "[[points]] theta0_deg", points["theta0_deg"],
+                     [math.degrees(base_ball.flat_face_theta_rad)])
+
+    # ---- run ---------------------------------------------------------------------------------
+    run = doc.get("run", {})
+    _unknown(src, "[run] ", run, RUN_KEYS)
+    if "T" not in run:
+        _err(src, "[run] T", "missing (duration in s)")
+    T = _number(src, "[run] T", run["T"], positive=True)
+    dt = _number(src, "[run] dt", run.get("dt", 1e-4), positive=True)
+    if dt > T:
+        _err(src, "[run] dt", f"must be <= T ({T} s), got {dt}")
+    if T / dt > 1e9:
+        _err(src, "[run] dt", f"T/dt = {T / dt:.3g} steps is more than 1e9")
+    method = run.get("method", "rk4")
+    if method not in FIXED_STEP:
+        _err(src, "[run] method", f"unknown method {method!r}; known: {', '.join(FIXED_STEP)}")
+    observe_every = _number(src, "[run] observe_every", run.get("observe_every", 4),
+                            positive=True, integer=True)
+    block = _number(src, "[run] block", run.get("block", 64), positive=True, integer=True)
+    chunk = _number(src, "[run] chunk", run.get("chunk", 4096), positive=True, integer=True)
+
+    try:
+        thresholds = Thresholds.from_mapping(doc.get("classify", {}))
+    except ValueError as exc:
+        raise SpecError(f"{src}: {exc}") from None
+
+    out = doc.get("output", {})
+    _unknown(src, "[output] ", out, OUTPUT_KEYS)
+    ofile = out.get("file", f"results/{Path(src).stem}.nc")
+    if not isinstance(ofile, str) or not ofile.endswith(".nc"):
+        _err(src, "[output] file", f"must be a path ending in .nc, got {ofile!r}")
+    variables = out.get("variables", list(DEFAULT_VARIABLES))
+    if not isinstance(variables, list) or not all(isinstance(v, str) for v in variables):
+        _err(src, "[output] variables", "must be a list of variable names")
+    for v in variables:
+        if v not in RESULT_VARIABLES:
+            _err(src, "[output] variables", f"unknown variable {v!r}; known: {', '.join(RESULT_VARIABLES)}")
+    variables = tuple(dict.fromkeys(["label"] + variables))
+    compression = _number(src, "[output] compression", out.get("compression", 4), integer=True)
+    if not 0 <= compression <= 9:
+        _err(src, "[output] compression", f"must be 0..9, got {compression}")
+
+    # the digest is of the parsed content: comments and layout may change, the sweep may not
+    digest = hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()
+    return Spec(text=text, source=src, title=title, ball=base_ball, kind=kind, axes=axes,
+                points=points, chi0_deg=chi0, T=T, dt=dt, method=method,
+                observe_every=observe_every, block=block, chunk=chunk, thresholds=thresholds,
+                output=Path(ofile), variables=variables, compression=compression, digest=digest)

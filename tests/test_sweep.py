@@ -1,0 +1,244 @@
+"""Sweeps: spec validation, chunk plans, storage (CF), resume after a crash, dask = embedded."""
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from ballsurvey.classify.labels import CODE
+from ballsurvey.sweep import SpecError, load_spec, plan_chunks, run_sweep
+from ballsurvey.sweep.engine import parts_dir
+
+ROOT = Path(__file__).resolve().parents[1]
+
+SMALL = """
+title = "small"
+[launch]
+theta0_deg = {start = -10.0, stop = 20.0, num = 4}
+thetadot0 = 0.0
+chidot0 = [2.3, 4.05, 8.0]
+phidot0 = [-3.0, -2.5]
+[run]
+T = 3.0
+dt = 5e-4
+chunk = 5
+[output]
+file = "OUT"
+"""
+
+
+def small_spec(tmp_path, name="small.nc", text=SMALL):
+    p = tmp_path / "small.toml"
+    p.write_text(text.replace("OUT", str(tmp_path / name)))
+    return load_spec(p)
+
+
+def test_plan_chunks_cover_the_grid_once():
+    for shape, chunk in [((4, 3, 2, 1), 5), ((100, 100, 100), 4096), ((1, 1, 7, 1), 3),
+                         ((3, 4), 100), ((5,), 2)]:
+        flat = np.arange(int(np.prod(shape))).reshape(shape)
+        seen = []
+        for lo, hi, slab in plan_chunks(shape, chunk):
+            assert 0 < hi - lo <= chunk
+            assert np.array_equal(flat[slab].ravel(), np.arange(lo, hi))
+            seen.append((lo, hi))
+        assert seen[0][0] == 0 and seen[-1][1] == flat.size
+        assert all(a[1] == b[0] for a, b in zip(seen, seen[1:]))
+
+
+def test_sweep_writes_a_cf_file_that_xarray_reads(tmp_path):
+    spec = small_spec(tmp_path)
+    out = run_sweep(spec, command="test")
+    ds = xr.open_dataset(out)
+    assert ds.label.dims == ("theta0_deg", "thetadot0", "chidot0", "phidot0")
+    assert ds.label.shape == (4, 1, 3, 2)
+    assert ds.label.dtype == np.int8
+    assert ds.label.attrs["flag_meanings"].split()[:6] == ["circle", "near_straight", "triangle",
+                                                           "square", "ngon", "star"]
+    assert ds.theta0_deg.attrs["units"] == "degree" and ds.chidot0.attrs["units"] == "rad s-1"
+    assert ds.attrs["Conventions"] == "CF-1.10"
+    assert "chunk = 5" in ds.attrs["spec_toml"]
+    assert ds.attrs["ball_c"] == 0.0029
+    # Fig. 12a's launch is in the grid: theta0 = -10 -> no; (-10, 2.3, -2.5) is Fig. 12b
+    assert int(ds.label.sel(theta0_deg=-10.0, chidot0=2.3, phidot0=-2.5).item()) == CODE["triangle"]
+    assert not parts_dir(out).exists()
+
+
+def test_cf_compliance(tmp_path):
+    from compliance_checker.runner import CheckSuite, ComplianceChecker
+
+    CheckSuite.load_all_available_checkers()
+    out = run_sweep(small_spec(tmp_path), command="test")
+    spec_pts = load_spec(ROOT / "sweeps" / "paper.toml")
+    spec_pts = replace(spec_pts, output=tmp_path / "paper.nc", T=2.0, dt=1e-3)
+    pts = run_sweep(spec_pts, command="test")
+    for path in (out, pts):
+        report = tmp_path / f"{path.stem}.json"
+        passed, errors = ComplianceChecker.run_checker(str(path), ["cf:1.10"], 0, "strict",
+                                                       output_filename=str(report),
+                                                       output_format="json")
+        assert passed and not errors, report.read_text()[:2000]
+
+
+def test_results_do_not_depend_on_chunking(tmp_path):
+    a = xr.open_dataset(run_sweep(small_spec(tmp_path, "a.nc"), command="test"))
+    b_spec = replace(small_spec(tmp_path, "b.nc"), chunk=1000)
+    b = xr.open_dataset(run_sweep(b_spec, command="test"))
+    for v in a.data_vars:
+        assert np.array_equal(a[v].values, b[v].values, equal_nan=True), v
+
+
+class Boom(Exception):
+    pass
+
+
+def test_resume_after_a_crash_gives_the_same_file(tmp_path):
+    ref = xr.open_dataset(run_sweep(small_spec(tmp_path, "ref.nc"), command="test"))
+    spec = small_spec(tmp_path, "crash.nc")
+
+    def crash(k):
+        if k == 2:
+            raise Boom
+
+    with pytest.raises(Boom):
+        run_sweep(spec, on_chunk=crash, command="test")
+    parts = parts_dir(spec.output)
+    assert len(list(parts.glob("chunk-*.npz"))) == 3 and not spec.output.exists()
+    with pytest.raises(FileExistsError, match="--resume"):
+        run_sweep(spec, command="test")
+    other = small_spec(tmp_path, "crash.nc", SMALL.replace("T = 3.0", "T = 4.0"))
+    with pytest.raises(FileExistsError, match="different spec"):
+        run_sweep(other, resume=True, command="test")
+    done = []
+    got = xr.open_dataset(run_sweep(spec, resume=True, on_chunk=done.append, command="test"))
+    assert 0 not in done and 1 not in done and 2 not in done  # finished chunks were not redone
+    for v in ref.data_vars:
+        assert np.array_equal(ref[v].values, got[v].values, equal_nan=True), v
+
+
+def test_existing_result_is_not_overwritten_without_force(tmp_path):
+    spec = small_spec(tmp_path, "keep.nc")
+    out = run_sweep(spec, command="test")
+    before = out.read_bytes()
+    other = small_spec(tmp_path, "keep.nc", SMALL.replace("T = 3.0", "T = 4.0"))
+    with pytest.raises(FileExistsError, match="another spec"):
+        run_sweep(other, command="test")
+    assert out.read_bytes() == before
+    run_sweep(other, force=True, command="test")
+    assert xr.open_dataset(out).attrs["run_T_s"] == 4.0
+
+
+def test_kill_9_loses_only_chunks_in_flight(tmp_path):
+    text = SMALL.replace("T = 3.0", "T = 20.0").replace("chunk = 5", "chunk = 2")
+    spec = small_spec(tmp_path, "killed.nc", text)
+    cmd = [sys.executable, "-m", "ballsurvey", "sweep", str(tmp_path / "small.toml"), "--no-progress"]
+    proc = subprocess.Popen(cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    parts = parts_dir(spec.output)
+    t0 = time.time()
+    while len(list(parts.glob("chunk-*.npz"))) < 2 and time.time() - t0 < 120:
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    kept = len(list(parts.glob("chunk-*.npz")))
+    assert 2 <= kept < len(plan_chunks(spec.shape, spec.chunk))
+    assert json.loads((parts / "manifest.json").read_text())["spec_digest"] == spec.digest
+    r = subprocess.run(cmd + ["--resume"], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    ref = xr.open_dataset(run_sweep(replace(spec, output=tmp_path / "ref.nc"), command="test"))
+    got = xr.open_dataset(spec.output)
+    for v in ref.data_vars:
+        assert np.array_equal(ref[v].values, got[v].values, equal_nan=True), v
+
+
+def test_dask_local_cluster_matches_embedded(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    ref = xr.open_dataset(run_sweep(small_spec(tmp_path, "emb.nc"), command="test"))
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  host="127.0.0.1", dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        got = xr.open_dataset(run_sweep(small_spec(tmp_path, "dask.nc"), client=client,
+                                        command="test"))
+    for v in ref.data_vars:
+        assert np.array_equal(ref[v].values, got[v].values, equal_nan=True), v
+
+
+def test_paper_points_spec_labels():
+    spec = load_spec(ROOT / "sweeps" / "paper.toml")
+    assert spec.kind == "points" and spec.shape == (6,)
+
+
+BAD = [
+    ("nope = 1", "unknown key"),
+    ("[launch]\ntheta0_deg = 'x'", "must be a number"),
+    ("theta0_deg = {start = 10.0, stop = 0.0, num = 5}", "reversed range"),
+    ("theta0_deg = []", "empty list"),
+    ("theta0_deg = nan", "must be finite"),
+    ("theta0_deg = inf", "must be finite"),
+    ("theta0_deg = -40.0", "flat face"),
+    ("theta0_deg = 90.0", "< 90 deg"),
+    ("T = 0.0", "must be > 0"),
+    ("T = -1.0", "must be > 0"),
+    ("dt = 0.0", "must be > 0"),
+    ("dt = 5.0", "must be <= T"),
+    ("method = 'euler'", "unknown method"),
+    ("mu = -1.0", "finite and >= 0"),
+    ("variables = ['label', 'colour']", "unknown variable"),
+    ("chidot0 = {start = 1.0, stop = 2.0}", "missing num"),
+]
+
+
+def _bad_text(fragment):
+    base = {"[launch]": ["theta0_deg = 5.0", "thetadot0 = 0.0", "chidot0 = 4.0", "phidot0 = -3.0"],
+            "[run]": ["T = 2.0", "dt = 1e-3"], "[classify]": [], "[output]": ["file = 'x.nc'"]}
+    key = fragment.split("=")[0].strip()
+    if fragment.startswith("[launch]"):
+        return fragment + "\nthetadot0 = 0.0\nchidot0 = 4.0\nphidot0 = -3.0\n[run]\nT = 2.0\n"
+    if key == "nope":
+        return fragment + "\n" + "\n".join(["[launch]"] + base["[launch]"] + ["[run]"] + base["[run]"])
+    sec = next(s for s, ks in {"[launch]": ["theta0_deg", "chidot0"], "[run]": ["T", "dt", "method"],
+                               "[classify]": ["mu"], "[output]": ["variables"]}.items() if key in ks)
+    lines = []
+    for s, ks in base.items():
+        lines.append(s)
+        lines += [k for k in ks if k.split("=")[0].strip() != key]
+        if s == sec:
+            lines.append(fragment)
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize("fragment,message", BAD)
+def test_bad_specs_are_refused_with_one_line(tmp_path, fragment, message):
+    p = tmp_path / "bad.toml"
+    p.write_text(_bad_text(fragment))
+    with pytest.raises(SpecError, match=message):
+        load_spec(p)
+
+
+def test_bad_spec_on_the_command_line_exits_2_and_writes_nothing(tmp_path):
+    p = tmp_path / "bad.toml"
+    p.write_text(_bad_text("theta0_deg = nan").replace("'x.nc'", "'out/x.nc'"))
+    r = subprocess.run([sys.executable, "-m", "ballsurvey", "sweep", str(p)], cwd=tmp_path,
+                       capture_output=True, text=True)
+    assert r.returncode == 2
+    assert len(r.stderr.strip().splitlines()) == 1 and "theta0_deg" in r.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_unwritable_output_is_refused(tmp_path):
+    if os.geteuid() == 0:
+        target = "/proc/ballsurvey-cannot-write/x.nc"  # not writable even for root
+    else:
+        ro = tmp_path / "ro"
+        ro.mkdir()
+        ro.chmod(0o500)
+        target = str(ro / "x.nc")
+    spec = replace(small_spec(tmp_path), output=Path(target))
+    with pytest.raises(PermissionError, match="cannot write"):
+        run_sweep(spec, command="test")
