@@ -70,3 +70,64 @@ def run_bench(n_launches: int = 4096, n_steps: int = 2000, dt: float = 1e-4, rep
     out(f"  largest |position difference| ensemble vs naive after {n_steps} steps: {diff_m:.2e} m")
     figures["max_position_difference_m"] = diff_m
     return figures
+
+
+MAP_SPEC = """
+title = "bench map {n}x{n}"
+[launch]
+theta0_deg = {{start = -10.0, stop = 30.0, num = {n}}}
+thetadot0 = 0.0
+chidot0 = {{start = 1.0, stop = 12.0, num = {n}}}
+phidot0 = -3.0
+[run]
+T = {T}
+dt = {dt}
+[output]
+file = "{out}"
+"""
+
+
+def run_map_bench(n: int = 64, T: float = 20.0, dt: float = 1e-4, naive_sample: int = 128,
+                  out=print) -> dict:
+    """Wall time of an n x n (theta0, chidot0) sweep through the whole engine (integrate,
+    classify, write netCDF) against the naive loop's time for the same map, estimated from
+    `naive_sample` of its launches (the naive loop only integrates: no classification, no file)."""
+    import tempfile
+    from pathlib import Path
+
+    from .sweep import load_spec, run_sweep
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "map.toml"
+        path.write_text(MAP_SPEC.format(n=n, T=T, dt=dt, out=Path(tmp) / "map.nc"))
+        spec = load_spec(path)
+        warm = load_spec(path, text=MAP_SPEC.format(n=2, T=dt * 4, dt=dt, out=Path(tmp) / "w.nc"))
+        run_sweep(warm, command="bench warm-up", progress=False)
+        t = time.perf_counter()
+        run_sweep(spec, command="bench", progress=False)
+        wall = time.perf_counter() - t
+    ball = Ball.paper()
+    p, tu = ball.nondim_params(), ball.time_unit
+    m = min(naive_sample, n * n)
+    th = np.radians(np.linspace(-10, 30, n))
+    chd = np.linspace(1, 12, n)
+    TH, CHD = (g.ravel() for g in np.meshgrid(th, chd, indexing="ij"))
+    pick = np.linspace(0, n * n - 1, m).astype(int)
+    z = np.zeros(m)
+    u0 = np.ascontiguousarray(np.stack([z, z, TH[pick], z, z, z, CHD[pick] * tu,
+                                        np.full(m, -3.0 * tu)], 1))
+    pn = np.ascontiguousarray(np.repeat(p[None, :], m, 0))
+    u_end = np.empty_like(u0)
+    steps = max(1, int(np.ceil(T / dt - 1e-9)))
+    naive.naive_ensemble(u0[:2], pn[:2], dt / tu, 2, u_end[:2])
+    t = time.perf_counter()
+    naive.naive_ensemble(u0, pn, dt / tu, steps, u_end)
+    naive_est = (time.perf_counter() - t) * (n * n) / m
+    out(f"ballsurvey map bench: {n} x {n} launches, T = {T} s, dt = {dt} s ({steps} RK4 steps), "
+        f"{numba.get_num_threads()} numba threads")
+    out(f"  sweep engine (integrate + classify + netCDF): {wall:8.2f} s  "
+        f"{n * n / wall:10.1f} launches/s")
+    out(f"  naive loop, estimated from {m} launches:      {naive_est:8.2f} s  "
+        f"{n * n / naive_est:10.1f} launches/s")
+    out(f"  ratio naive / engine: {naive_est / wall:.1f}x")
+    return {"wall_s": wall, "naive_estimate_s": naive_est}

@@ -10,8 +10,11 @@ class UserError(Exception):
 
 
 def _cmd_bench(args):
-    from .bench import run_bench
+    from .bench import run_bench, run_map_bench
 
+    if args.map:
+        run_map_bench(n=args.map, T=args.T, dt=args.dt)
+        return
     run_bench(n_launches=args.launches, n_steps=args.steps, dt=args.dt, repeats=args.repeats,
               block=args.block, observe_every=args.observe_every)
 
@@ -59,6 +62,72 @@ def _cmd_sweep(args):
     print(f"wrote {out} ({spec.n_launches} launches)")
 
 
+def _open_map(path):
+    import xarray as xr
+
+    try:
+        return xr.open_dataset(path)
+    except FileNotFoundError:
+        raise UserError(f"no such file: {path}") from None
+    except (OSError, ValueError) as exc:
+        raise UserError(f"cannot read {path} as netCDF: {exc}") from None
+
+
+def _parse_at(items):
+    at = {}
+    for item in items or []:
+        key, sep, val = item.partition("=")
+        if not sep:
+            raise UserError(f"--at takes AXIS=VALUE, got {item!r}")
+        try:
+            at[key] = float(val)
+        except ValueError:
+            raise UserError(f"--at {key}: {val!r} is not a number") from None
+    return at
+
+
+def _cmd_plot(args):
+    from pathlib import Path
+
+    from .plot import plot_map
+
+    ds = _open_map(args.result)
+    out = Path(args.output or Path(args.result).with_suffix(".png"))
+    plot_map(ds, out, x=args.x, y=args.y, at=_parse_at(args.at), facet=args.facet,
+             contours=not args.no_contours)
+    print(f"wrote {out}")
+
+
+def _cmd_path(args):
+    from pathlib import Path
+
+    from .plot import plot_path
+    from .simulate import simulate
+
+    ds = simulate(args.theta0_deg, args.thetadot0, args.chidot0, args.phidot0, args.T, dt=args.dt,
+                  chi0_deg=args.chi0_deg, n_out=args.n_out)
+    out = Path(args.output)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    plot_path(ds, out)
+    a = ds.attrs
+    print(f"{a['label']}: n_sides {a['n_sides']:.4f}, turn per cycle {a['turn_per_cycle_deg']:.3f} "
+          f"deg, theta {a['theta_min_deg']:.2f}..{a['theta_max_deg']:.2f} deg, corners "
+          f"{a['corner_kind']}; wrote {out}")
+
+
+def _cmd_query(args):
+    from .query import format_rows, query
+
+    rows = query(_open_map(args.result), shape=args.shape, n_sides=args.n_sides, limit=args.limit)
+    print(format_rows(rows, args.format))
+
+
+def _cmd_paper(args):
+    from .paper import reproduce
+
+    reproduce(args.output)
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="python -m ballsurvey",
                                  description="Map how a biased ball rolls (Wheatland, Cross et al. 2020).")
@@ -71,6 +140,9 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--repeats", type=int, default=3)
     b.add_argument("--block", type=int, default=64, help="launches per block")
     b.add_argument("--observe-every", type=int, default=4, help="observer cadence (steps)")
+    b.add_argument("--map", type=int, metavar="N",
+                   help="instead: time an N x N sweep through the whole engine vs the naive loop")
+    b.add_argument("--T", type=float, default=20.0, help="duration (s) for --map")
     b.set_defaults(func=_cmd_bench)
 
     s = sub.add_parser("sweep", help="integrate and classify every launch of a spec; write a netCDF map")
@@ -85,6 +157,42 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
                    help="progress bar on stderr (default: when stderr is a terminal)")
     s.set_defaults(func=_cmd_sweep)
+
+    p = sub.add_parser("plot", help="draw a regime map (PNG) from a sweep's netCDF file")
+    p.add_argument("result", help="a ballsurvey netCDF map")
+    p.add_argument("--x", help="axis drawn across (default: the second longest)")
+    p.add_argument("--y", help="axis drawn up (default: the longest)")
+    p.add_argument("--at", action="append", metavar="AXIS=VALUE",
+                   help="fix another axis at its value nearest VALUE (repeatable)")
+    p.add_argument("--facet", metavar="AXIS", help="one panel per value of AXIS")
+    p.add_argument("--no-contours", action="store_true", help="omit the n_sides = 3, 4 contours")
+    p.add_argument("-o", "--output", help="PNG file (default: RESULT with .png)")
+    p.set_defaults(func=_cmd_plot)
+
+    q = sub.add_parser("path", help="integrate one launch and draw it like the paper's figures")
+    q.add_argument("--theta0-deg", type=float, required=True, help="initial tilt (deg)")
+    q.add_argument("--thetadot0", type=float, default=0.0, help="rad/s")
+    q.add_argument("--chidot0", type=float, required=True, help="rad/s")
+    q.add_argument("--phidot0", type=float, required=True, help="rad/s")
+    q.add_argument("--chi0-deg", type=float, default=0.0, help="initial heading (deg)")
+    q.add_argument("--T", type=float, default=20.0, help="duration (s)")
+    q.add_argument("--dt", type=float, default=1e-4, help="largest step (s)")
+    q.add_argument("--n-out", type=int, default=4001, help="samples kept")
+    q.add_argument("-o", "--output", default="results/path.png", help="PNG file")
+    q.set_defaults(func=_cmd_path)
+
+    r = sub.add_parser("query", help="list the launches of a map that give a shape, best first")
+    r.add_argument("result", help="a ballsurvey netCDF map")
+    g = r.add_mutually_exclusive_group(required=True)
+    g.add_argument("--shape", help="a label word (circle, square, triangle, ..., or a status)")
+    g.add_argument("--n-sides", type=int, help="polygons that close with N sides")
+    r.add_argument("--format", choices=("table", "csv", "json"), default="table")
+    r.add_argument("--limit", type=int, help="at most N rows")
+    r.set_defaults(func=_cmd_query)
+
+    pp = sub.add_parser("paper", help="reproduce the paper's numerical figures and compare numbers")
+    pp.add_argument("-o", "--output", default="results/paper", help="folder for the PNGs")
+    pp.set_defaults(func=_cmd_paper)
     return ap
 
 

@@ -1,0 +1,196 @@
+"""Plots: regime maps of a stored sweep, and single paths drawn like the paper's figures."""
+from __future__ import annotations
+
+import math
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import xarray as xr  # noqa: E402
+from matplotlib.colors import BoundaryNorm, ListedColormap  # noqa: E402
+from matplotlib.patches import Patch  # noqa: E402
+
+from .ball import Ball  # noqa: E402
+from .classify.labels import LABELS, SHAPES  # noqa: E402
+from .physics import euler  # noqa: E402
+
+#: one colour per label word: shapes in saturated colours, statuses in greys / muted tones
+LABEL_COLOURS = {
+    "circle": "#4477aa", "near_straight": "#66ccee", "triangle": "#228833", "square": "#ee6677",
+    "ngon": "#ccbb44", "star": "#aa3377",
+    "unresolved": "#dddddd", "blew_up": "#000000", "singular": "#555555", "flat_face": "#997755",
+    "lift_off": "#bbbbbb", "slipping": "#888888",
+}
+AXIS_TEXT = {"theta0_deg": r"$\theta_0$ (deg)", "thetadot0": r"$\dot\theta_0$ (rad/s)",
+             "chidot0": r"$\dot\chi_0$ (rad/s)", "phidot0": r"$\dot\phi_0$ (rad/s)",
+             "c": "c (m)", "cut_height": "cut height (m)", "M": "M (kg)", "A": "A (kg m²)",
+             "B": "B (kg m²)"}
+
+
+def _select(ds: xr.Dataset, x: str, y: str, at: dict, facet: str | None) -> xr.Dataset:
+    for k, v in at.items():
+        if k not in ds.dims:
+            raise ValueError(f"--at {k}: not an axis of this map; axes: {', '.join(ds.dims)}")
+        ds = ds.sel({k: v}, method="nearest")
+    keep = {x, y} | ({facet} if facet else set())
+    for d in list(ds.dims):
+        if d not in keep:
+            if ds.sizes[d] != 1:
+                raise ValueError(f"axis {d} has {ds.sizes[d]} values: fix one with --at {d}=VALUE "
+                                 f"or draw it as facets with --facet {d}")
+            ds = ds.isel({d: 0})
+    return ds
+
+
+def default_axes(ds: xr.Dataset) -> tuple[str, str]:
+    """The two longest axes of a grid, the first drawn across."""
+    dims = sorted(ds.label.dims, key=lambda d: -ds.sizes[d])
+    if len(dims) < 2 or ds.sizes[dims[1]] < 2:
+        raise ValueError("a regime map needs two axes with more than one value")
+    return dims[1], dims[0]
+
+
+def plot_map(ds: xr.Dataset, out, x: str | None = None, y: str | None = None,
+             at: dict | None = None, facet: str | None = None, contours: bool = True):
+    """Categorical map of `label` over axes x (across) and y (up); facets along `facet`."""
+    if "label" not in ds:
+        raise ValueError("the file has no 'label' variable (not a ballsurvey map?)")
+    if "launch" in ds.dims:
+        raise ValueError("this file holds named points, not a grid: use 'query' to list them")
+    if x is None or y is None:
+        dx, dy = default_axes(ds)
+        x = x or (dx if dx != y else dy)
+        y = y or (dy if dy != x else dx)
+    if x == y:
+        raise ValueError(f"--x and --y are the same axis ({x})")
+    for a in (x, y) + ((facet,) if facet else ()):
+        if a not in ds.dims:
+            raise ValueError(f"{a!r} is not an axis of this map; axes: {', '.join(ds.dims)}")
+    sel = _select(ds, x, y, at or {}, facet)
+    panels = [sel] if facet is None else [sel.isel({facet: i}) for i in range(sel.sizes[facet])]
+    ncol = min(3, len(panels))
+    nrow = math.ceil(len(panels) / ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(5.2 * ncol + 1.8, 4.4 * nrow), squeeze=False,
+                             constrained_layout=True)
+    cmap = ListedColormap([LABEL_COLOURS[w] for w in LABELS])
+    norm = BoundaryNorm(np.arange(-0.5, len(LABELS) + 0.5), cmap.N)
+    present = set()
+    for ax, panel in zip(axes.flat, panels):
+        lab = panel.label.transpose(y, x).values.astype(float)
+        lab[lab < 0] = np.nan
+        present |= set(int(v) for v in np.unique(lab[np.isfinite(lab)]))
+        xs, ys = panel[x].values, panel[y].values
+        ax.pcolormesh(xs, ys, lab, cmap=cmap, norm=norm, shading="nearest")
+        if contours and "n_sides" in panel and min(len(xs), len(ys)) >= 3:
+            ns = panel.n_sides.transpose(y, x).values
+            poly = np.isin(panel.label.transpose(y, x).values, [LABELS.index("triangle"),
+                                                                 LABELS.index("square")])
+            ns = np.where(np.isfinite(ns) & (ns < 6), ns, np.nan)
+            if np.isfinite(ns).sum() >= 4 and poly.any():
+                cs = ax.contour(xs, ys, ns, levels=[3.0, 4.0], colors="k", linewidths=1.0)
+                ax.clabel(cs, fmt={3.0: "n=3", 4.0: "n=4"}, fontsize=8)
+        ax.set_xlabel(AXIS_TEXT.get(x, x))
+        ax.set_ylabel(AXIS_TEXT.get(y, y))
+        if facet:
+            ax.set_title(f"{AXIS_TEXT.get(facet, facet)} = {float(panel[facet]):g}", fontsize=10)
+    for ax in list(axes.flat)[len(panels):]:
+        ax.set_visible(False)
+    fixed = [f"{AXIS_TEXT.get(d, d)} = {float(sel[d]):g}" for d in ds.label.dims
+             if d not in (x, y, facet) and d in sel.coords]
+    fig.suptitle(ds.attrs.get("title", "regime map") + ("\n" + ", ".join(fixed) if fixed else ""),
+                 fontsize=11)
+    shapes = [Patch(facecolor=LABEL_COLOURS[w], label=w.replace("_", "-"))
+              for i, w in enumerate(LABELS) if w in SHAPES and i in present]
+    status = [Patch(facecolor=LABEL_COLOURS[w], edgecolor="k", hatch="//", label=w.replace("_", " "))
+              for i, w in enumerate(LABELS) if w not in SHAPES and i in present]
+    handles = shapes + ([Patch(visible=False, label="status:")] + status if status else [])
+    fig.legend(handles=handles, loc="outside right center", title="path shape", fontsize=9)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
+def path_diagnostics(ds: xr.Dataset, ball: Ball) -> dict:
+    """Heading rate of the path, friction ratio and normal force along a `simulate` trajectory."""
+    p, tu = ball.nondim_params(), ball.time_unit
+    n = ds.sizes["time"]
+    psid, fric, normal = np.empty(n), np.empty(n), np.empty(n)
+    for k in range(n):
+        u = np.array([ds.x.values[k] / ball.a, ds.y.values[k] / ball.a, ds.theta.values[k],
+                      ds.chi.values[k], ds.phi.values[k], ds.thetadot.values[k] * tu,
+                      ds.chidot.values[k] * tu, ds.phidot.values[k] * tu])
+        fx, fy, nn, *_ = euler.contact(u, p)
+        fric[k] = math.hypot(fx, fy) / nn if nn > 0 else np.inf
+        normal[k] = nn * ball.M * ball.g
+    vx = np.gradient(ds.x.values, ds.time.values)
+    vy = np.gradient(ds.y.values, ds.time.values)
+    heading = np.unwrap(np.arctan2(vy, vx))
+    psid = np.gradient(heading, ds.time.values)
+    return {"heading_rate": psid, "friction_ratio": fric, "normal_N": normal}
+
+
+def corner_indices(ds: xr.Dataset, heading_rate: np.ndarray) -> np.ndarray:
+    """Per theta cycle (between successive theta maxima), the sample of peak |heading rate|."""
+    th = ds.theta.values
+    mx = np.flatnonzero((th[1:-1] > th[:-2]) & (th[1:-1] >= th[2:])) + 1
+    return np.array([a + int(np.argmax(np.abs(heading_rate[a:b]))) for a, b in zip(mx, mx[1:])
+                     if b > a + 1], dtype=int)
+
+
+def plot_path(ds: xr.Dataset, out, ball: Ball | None = None, title: str | None = None):
+    """One launch like the paper's figures: path coloured by theta with corners marked and the
+    label in the title; theta(t); chidot and phidot (t); friction ratio and normal force (t)."""
+    from matplotlib.collections import LineCollection
+
+    ball = ball or Ball.paper()
+    diag = path_diagnostics(ds, ball)
+    t = ds.time.values
+    x, y, th = ds.x.values, ds.y.values, np.degrees(ds.theta.values)
+    fig = plt.figure(figsize=(11, 7.5), constrained_layout=True)
+    gs = fig.add_gridspec(3, 2, width_ratios=[1.25, 1])
+    ax = fig.add_subplot(gs[:, 0])
+    pts = np.stack([x, y], 1)
+    segs = np.stack([pts[:-1], pts[1:]], 1)
+    lc = LineCollection(segs, cmap="viridis", linewidths=1.6)
+    lc.set_array(0.5 * (th[1:] + th[:-1]))
+    ax.add_collection(lc)
+    fig.colorbar(lc, ax=ax, label=r"$\theta$ (deg)", shrink=0.7)
+    ci = corner_indices(ds, diag["heading_rate"])
+    if len(ci):
+        ax.plot(x[ci], y[ci], "o", ms=5, mfc="none", mec="crimson", label="corners")
+    ax.plot(x[0], y[0], "k^", ms=7, label="start")
+    ax.legend(loc="best", fontsize=8)
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.autoscale_view()
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    a = ds.attrs
+    label = a.get("label", "?")
+    extra = f", n = {a['n_sides']:.3f}" if isinstance(a.get("n_sides"), float) and \
+        math.isfinite(a["n_sides"]) else ""
+    ax.set_title(f"{label}{extra}, corners {a.get('corner_kind', '?')}", fontsize=11)
+    ax1 = fig.add_subplot(gs[0, 1])
+    ax1.plot(t, th, "k", lw=1)
+    ax1.set_ylabel(r"$\theta$ (deg)")
+    ax2 = fig.add_subplot(gs[1, 1], sharex=ax1)
+    ax2.plot(t, ds.chidot.values, label=r"$\dot\chi$")
+    ax2.plot(t, ds.phidot.values, label=r"$\dot\phi$")
+    ax2.set_ylabel("rate (rad/s)")
+    ax2.legend(fontsize=8)
+    ax3 = fig.add_subplot(gs[2, 1], sharex=ax1)
+    ax3.plot(t, diag["friction_ratio"], color="tab:red", lw=1)
+    ax3.set_ylabel(r"$|F_h|/N$", color="tab:red")
+    ax3.set_xlabel("t (s)")
+    ax4 = ax3.twinx()
+    ax4.plot(t, diag["normal_N"], color="tab:blue", lw=1)
+    ax4.set_ylabel("N (N)", color="tab:blue")
+    fig.suptitle(title or (rf"$\theta_0$ = {a.get('theta0_deg')} deg, $\dot\theta_0$ = "
+                           rf"{a.get('thetadot0')}, $\dot\chi_0$ = {a.get('chidot0')}, "
+                           rf"$\dot\phi_0$ = {a.get('phidot0'):.4g} rad/s, T = {a.get('T_s')} s"),
+                 fontsize=11)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out

@@ -1,0 +1,113 @@
+"""What users do with a map: plots are written and not blank, query returns exactly the matching
+launches best first, and the paper's figures are reproduced."""
+import subprocess
+import sys
+from pathlib import Path
+
+import matplotlib.image as mpimg
+import numpy as np
+import pytest
+import xarray as xr
+
+from ballsurvey.classify.labels import CODE
+from ballsurvey.paper import reproduce
+from ballsurvey.plot import plot_map, plot_path
+from ballsurvey.query import format_rows, query
+from ballsurvey.simulate import simulate
+from ballsurvey.sweep import load_spec, run_sweep
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def small_map(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("map")
+    spec = tmp / "m.toml"
+    spec.write_text(f"""
+title = "test map"
+[launch]
+theta0_deg = {{start = -10.0, stop = 30.0, num = 6}}
+thetadot0 = 0.0
+chidot0 = {{start = 1.0, stop = 12.0, num = 8}}
+phidot0 = [-3.0, -2.5]
+[run]
+T = 5.0
+dt = 5e-4
+[output]
+file = "{tmp / 'm.nc'}"
+""")
+    return xr.open_dataset(run_sweep(load_spec(spec), command="test"))
+
+
+def assert_real_png(path, min_bytes=15000):
+    assert path.exists() and path.stat().st_size > min_bytes
+    img = mpimg.imread(path)[..., :3]
+    assert img.shape[0] > 300 and img.shape[1] > 400
+    assert img.std() > 0.05  # not blank
+    assert len(np.unique((img * 255).astype(np.uint8).reshape(-1, 3), axis=0)) > 20
+
+
+def test_plot_map_needs_the_other_axes_fixed(small_map, tmp_path):
+    with pytest.raises(ValueError, match="--at phidot0"):
+        plot_map(small_map, tmp_path / "x.png")
+    out = plot_map(small_map, tmp_path / "map.png", at={"phidot0": -3.0})
+    assert_real_png(out)
+    out = plot_map(small_map, tmp_path / "facets.png", facet="phidot0")
+    assert_real_png(out)
+
+
+def test_plot_path(tmp_path):
+    ds = simulate(-5.0, 0.0, 4.05, -3.0, T=6.0)
+    assert_real_png(plot_path(ds, tmp_path / "path.png"))
+
+
+@pytest.mark.parametrize("shape", ["square", "triangle", "circle", "ngon", "star", "near_straight"])
+def test_query_returns_exactly_the_matching_launches(small_map, shape):
+    rows = query(small_map, shape=shape)
+    assert len(rows) == int((small_map.label.values == CODE[shape]).sum())
+    want = set()
+    for idx in zip(*np.nonzero(small_map.label.values == CODE[shape])):
+        want.add((float(small_map.theta0_deg[idx[0]]), float(small_map.chidot0[idx[2]]),
+                  float(small_map.phidot0[idx[3]])))
+    got = {(r["theta0_deg (deg)"], r["chidot0 (rad/s)"], r["phidot0 (rad/s)"]) for r in rows}
+    assert got == want
+    assert all(r["label"] == shape for r in rows)
+    if shape in ("square", "triangle"):
+        err = [r["n_sides_error"] for r in rows]
+        assert err == sorted(err)
+
+
+def test_query_n_sides(small_map):
+    rows = query(small_map, n_sides=4)
+    assert rows and all(round(r["n_sides"]) == 4 for r in rows)
+    ns = small_map.n_sides.values
+    poly = np.isin(small_map.label.values, [CODE["triangle"], CODE["square"], CODE["ngon"]])
+    assert len(rows) == int((poly & (np.round(ns) == 4)).sum())
+    assert "n_sides" in format_rows(rows, "csv").splitlines()[0]
+
+
+def test_query_on_named_points():
+    spec = load_spec(ROOT / "sweeps" / "paper.toml")
+    assert spec.kind == "points"
+
+
+def test_cli_plot_bad_axis_is_one_line(small_map, tmp_path):
+    path = small_map.encoding["source"]
+    r = subprocess.run([sys.executable, "-m", "ballsurvey", "plot", path, "--x", "nope",
+                        "--at", "phidot0=-3", "-o", str(tmp_path / "p.png")],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "p.png").exists()
+
+
+def test_paper_reproduction(tmp_path):
+    lines = []
+    table = reproduce(tmp_path, T_label=8.0, dt=2e-4, emit=lines.append)
+    for f in ("fig4", "fig7", "fig9a", "fig9c", "fig12a", "fig12b"):
+        assert_real_png(tmp_path / f"{f}.png")
+    verdict = {r["quantity"]: r["verdict"] for r in table}
+    for q in ("Fig. 4 shape", "Fig. 7 shape", "Fig. 9a shape", "Fig. 9c shape", "Fig. 12a shape",
+              "Fig. 12b shape", "Fig. 7 theta range (deg)", "Fig. 12a theta range (deg)",
+              "Fig. 3/4 period (s)"):
+        assert verdict[q] == "agree", q
+    assert verdict["Fig. 4 phidot0 from Eq. (28) (rad/s)"] == "differ"  # ERRATA: rounded
