@@ -122,6 +122,12 @@ def _cmd_query(args):
     print(format_rows(rows, args.format))
 
 
+def _cmd_accuracy(args):
+    from .accuracy import run_accuracy
+
+    run_accuracy(args.output, quick=args.quick)
+
+
 def _cmd_paper(args):
     from .paper import reproduce
 
@@ -193,6 +199,12 @@ def build_parser() -> argparse.ArgumentParser:
     pp = sub.add_parser("paper", help="reproduce the paper's numerical figures and compare numbers")
     pp.add_argument("-o", "--output", default="results/paper", help="folder for the PNGs")
     pp.set_defaults(func=_cmd_paper)
+
+    ac = sub.add_parser("accuracy", help="work-precision report: error against run time, RK4 and "
+                                         "adaptive, paper and extreme cases")
+    ac.add_argument("-o", "--output", default="results/accuracy", help="folder for .nc and .png")
+    ac.add_argument("--quick", action="store_true", help="fewer cases and settings (a minute)")
+    ac.set_defaults(func=_cmd_accuracy)
     return ap
 
 

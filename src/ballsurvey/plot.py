@@ -21,7 +21,7 @@ LABEL_COLOURS = {
     "circle": "#4477aa", "near_straight": "#66ccee", "triangle": "#228833", "square": "#ee6677",
     "ngon": "#ccbb44", "star": "#aa3377",
     "unresolved": "#dddddd", "blew_up": "#000000", "singular": "#555555", "flat_face": "#997755",
-    "lift_off": "#bbbbbb", "slipping": "#888888",
+    "lift_off": "#bbbbbb", "slipping": "#888888", "inaccurate": "#ee7733",
 }
 AXIS_TEXT = {"theta0_deg": r"$\theta_0$ (deg)", "thetadot0": r"$\dot\theta_0$ (rad/s)",
              "chidot0": r"$\dot\chi_0$ (rad/s)", "phidot0": r"$\dot\phi_0$ (rad/s)",

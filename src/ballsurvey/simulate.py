@@ -13,7 +13,10 @@ import xarray as xr
 from .ball import Ball
 from .classify.labels import CORNER_KINDS, LABELS, Thresholds, label_fields
 from .integrate import ensemble
-from .integrate.ensemble import (S_CHD, S_CHI, S_PHD, S_PHI, S_STH, S_CTH, S_TH, S_THD, S_X,
+from .integrate.adaptive import ADAPTIVE, trajectory_adaptive
+from .integrate.driver import FALLBACK_ATOL, FALLBACK_RTOL, needs_fallback
+from .integrate.tableaus import FIXED_STEP
+from .integrate.ensemble import (S_CHD, S_CHI, S_CTH, S_PHD, S_PHI, S_STH, S_TH, S_THD, S_X,
                                  S_Y)
 from .physics.euler import energy
 
@@ -38,13 +41,18 @@ def check_launch(theta0_deg, T, dt, ball: Ball) -> None:
 def simulate(theta0_deg: float, thetadot0: float, chidot0: float, phidot0: float, T: float,
              dt: float = 1e-4, chi0_deg: float = 0.0, x0: float = 0.0, y0: float = 0.0,
              ball: Ball | None = None, n_out: int = 2001, method: str = "rk4",
-             thresholds: Thresholds | None = None) -> xr.Dataset:
+             thresholds: Thresholds | None = None, rtol: float = 1e-9,
+             atol: float = 1e-12) -> xr.Dataset:
     """Integrate one launch and return its trajectory.
 
     theta0_deg, chi0_deg: initial tilt and heading (deg); thetadot0, chidot0, phidot0: initial
-    rates (rad/s); T: duration (s); dt: largest step (s) — the step used is T/N for the smallest
-    N >= T/dt that is a multiple of n_out - 1, so the n_out samples fall exactly on steps;
-    x0, y0: initial centre-of-mass position (m).
+    rates (rad/s); T: duration (s); x0, y0: initial centre-of-mass position (m).
+    method: a fixed-step method (rk4, rk38, ssprk3, heun) — dt is the largest step (s), the step
+    used is T/N for the smallest N >= T/dt that is a multiple of n_out - 1, so the n_out samples
+    fall exactly on steps — or "dopri5"/"adaptive" with rtol, atol, whose samples are its
+    accepted steps (not evenly spaced; n_out is ignored).
+    A launch whose tilt reaches 90 deg (the Euler form's singularity) is integrated again in the
+    fixed-frame form (attrs formulation = "fixed_frame"; phi is then not recovered: NaN).
 
     Returns a Dataset on `time` (s) with x, y (m), theta, chi, phi (rad), thetadot, chidot, phidot
     (rad/s) and energy (J); its attrs hold the label and the classifier's fields.
@@ -53,20 +61,34 @@ def simulate(theta0_deg: float, thetadot0: float, chidot0: float, phidot0: float
     check_launch(theta0_deg, T, dt, ball)
     if n_out < 2:
         raise ValueError(f"n_out must be >= 2, got {n_out!r}")
+    if method not in FIXED_STEP and method not in ADAPTIVE:
+        raise ValueError(f"unknown method {method!r}; known: {', '.join([*FIXED_STEP, *ADAPTIVE])}")
     tu, a = ball.time_unit, ball.a
     p = ball.nondim_params()
-    seg = n_out - 1
-    n_steps = seg * math.ceil(T / dt / seg - 1e-9)
-    dt_nd = T / tu / n_steps
     y_init = ensemble.fast_state(x0 / a, y0 / a, math.radians(theta0_deg), math.radians(chi0_deg),
                                  0.0, thetadot0 * tu, chidot0 * tu, phidot0 * tu)
-    _, obs, traj = ensemble.integrate(y_init, p[:, None], dt_nd, n_steps, method, block=1,
-                                      observe_every=1, n_rec=n_out, stride=n_steps // seg,
-                                      parallel=False)
-    s = traj[:, :, 0]
-    time = np.arange(n_out) * (dt_nd * (n_steps // seg)) * tu
+    formulation = "euler_angles"
+    dt_used = math.nan
+    if method in FIXED_STEP:
+        seg = n_out - 1
+        n_steps = seg * math.ceil(T / dt / seg - 1e-9)
+        dt_nd = T / tu / n_steps
+        _, obs, traj = ensemble.integrate(y_init, p[:, None], dt_nd, n_steps, method, block=1,
+                                          observe_every=1, n_rec=n_out, stride=n_steps // seg,
+                                          parallel=False)
+        obs = obs[:, 0]
+        s = traj[:, :, 0]
+        t_nd = np.arange(n_out) * (dt_nd * (n_steps // seg))
+        dt_used = dt_nd * tu
+    else:
+        t_nd, s, obs = trajectory_adaptive(y_init[:, 0], p, T / tu, rtol, atol, h_init=dt / tu,
+                                           tableau=ADAPTIVE[method])
+    if needs_fallback(obs[:, None])[0]:
+        t_nd, s, obs = trajectory_adaptive(y_init[:, 0], p, T / tu, FALLBACK_RTOL, FALLBACK_ATOL,
+                                           fixed_frame=True, h_init=dt / tu)
+        formulation = "fixed_frame"
     e = np.array([energy(r[S_STH], r[S_CTH], r[S_THD], r[S_CHD], r[S_PHD], *p) for r in s])
-    f = label_fields(obs, ball.flat_face_theta_rad, a, tu, thresholds or Thresholds())
+    f = label_fields(obs[:, None], ball.flat_face_theta_rad, a, tu, thresholds or Thresholds())
 
     def var(values, units, long_name):
         return ("time", values, {"units": units, "long_name": long_name})
@@ -83,13 +105,17 @@ def simulate(theta0_deg: float, thetadot0: float, chidot0: float, phidot0: float
             "phidot": var(s[:, S_PHD] / tu, "rad s-1", "rate of phi (spin)"),
             "energy": var(e * ball.M * ball.g * a, "J", "kinetic plus potential energy, Eqs. (11)-(12)"),
         },
-        coords={"time": ("time", time, {"units": "s", "long_name": "time", "standard_name": "time"})},
+        coords={"time": ("time", t_nd * tu,
+                         {"units": "s", "long_name": "time", "standard_name": "time"})},
     )
     label = LABELS[int(f.pop("label")[0])]
     kind = CORNER_KINDS[int(f.pop("corner_kind")[0])]
+    f.pop("formulation")
     ds.attrs.update({k: v[0].item() for k, v in f.items()})
-    ds.attrs.update(label=label, corner_kind=kind, dt_s=dt_nd * tu, method=method,
-                    theta0_deg=theta0_deg, thetadot0=thetadot0, chidot0=chidot0, phidot0=phidot0,
-                    chi0_deg=chi0_deg, T_s=T)
+    ds.attrs.update(label=label, corner_kind=kind, dt_s=dt_used, method=method,
+                    formulation=formulation, theta0_deg=theta0_deg, thetadot0=thetadot0,
+                    chidot0=chidot0, phidot0=phidot0, chi0_deg=chi0_deg, T_s=T)
+    if method in ADAPTIVE:
+        ds.attrs.update(rtol=rtol, atol=atol)
     ds.attrs.update({f"ball_{k}": v for k, v in ball.as_dict().items()})
     return ds

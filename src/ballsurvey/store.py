@@ -22,6 +22,11 @@ RESULT_VARIABLES = {
     "turn_per_cycle_deg": ("f8", "degree",
                            "net turn of the path per theta cycle, folded into (-180, 180], "
                            "counter-clockwise positive seen from above", {}),
+    "chord_turn_per_cycle_deg": ("f8", "degree",
+                                 "mean rotation of the chord between successive theta maxima", {}),
+    "formulation": ("i1", None, "equations the launch was integrated with",
+                    {"flag_values": np.arange(2, dtype=np.int8),
+                     "flag_meanings": "euler_angles fixed_frame"}),
     "theta_period_s": ("f8", "s", "period of the tilt theta", {}),
     "side_m": ("f8", "m", "chord between successive theta maxima (polygon side)", {}),
     "corner_kind": ("i1", None, "kind of corner",

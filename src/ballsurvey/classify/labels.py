@@ -5,7 +5,9 @@ codes stored in files. Shape and validity are separate: a launch that blew up, h
 singularity, slipped, lifted off or rolled onto its flat face gets a status word, never a shape.
 
 How a label is decided (per-cycle quantities only, so a label does not change with T):
-1. status, first match wins: non-finite -> `blew_up`; contact on the flat face (theta_min below
+1. status, first match wins: non-finite -> `blew_up`; energy drift above `max_energy_drift`
+   (the step is too large for the dynamics: nothing else can be trusted) -> `inaccurate`;
+   contact on the flat face (theta_min below
    the ball's limit) -> `flat_face`; |theta| reached 90 deg -> `singular`; N <= 0 -> `lift_off`;
    max |F_h|/N > mu -> `slipping`.
 2. theta range < `steady_theta_tol_deg` -> `circle` (steady rolling, Sec. III).
@@ -22,6 +24,9 @@ How a label is decided (per-cycle quantities only, so a label does not change wi
    Otherwise |D| > `star_min_turn_deg` -> `star` {p/q} (144 deg: a pentagram {5/2}); else the
    nearest whole n: 3 `triangle`, 4 `square`, else `ngon`. A steady wobble whose heading turns
    evenly through 140 deg per cycle is a circle, not a star: it has no distinct corners.
+   A chord between maxima shorter than `retrace_ratio` of the distance rolled per cycle means
+   the path retraces a line (a ball launched with no spin rocks in a vertical plane through the
+   upright position): `near_straight`, corners `cusp`.
 5. Corner kind: `loop` when the path's heading turns through a whole extra turn per cycle
    (raw turn = D + 360 k, k != 0: the velocity winds once around relative to the ball's heading),
    `cusp` when the speed nearly vanishes (min / mean speed < `cusp_speed_ratio`), else `rounded`.
@@ -39,7 +44,8 @@ import numpy as np
 from . import observer as ob
 
 SHAPES = ("circle", "near_straight", "triangle", "square", "ngon", "star")
-STATUSES = ("unresolved", "blew_up", "singular", "flat_face", "lift_off", "slipping")
+STATUSES = ("unresolved", "blew_up", "singular", "flat_face", "lift_off", "slipping",
+            "inaccurate")
 LABELS = SHAPES + STATUSES
 CODE = {w: i for i, w in enumerate(LABELS)}
 
@@ -60,7 +66,9 @@ class Thresholds:
     corner_sharpness_min: float = 2.0  #: peak / mean heading rate below it -> no distinct corners
     monotonicity_min: float = 0.75  #: |raw turn| / total turning below it -> no distinct corners
     cusp_speed_ratio: float = 0.05  #: min speed / mean speed in a cycle below it -> cusp corner
+    retrace_ratio: float = 0.03  #: chord / distance rolled per cycle below it -> retraced line
     max_star_points: int = 12  #: largest p searched for a star {p/q}
+    max_energy_drift: float = 1e-4  #: |E - E0| / |E0| above it -> inaccurate (step too large)
 
     @classmethod
     def from_mapping(cls, mapping: dict) -> "Thresholds":
@@ -120,6 +128,10 @@ def label_fields(obs: np.ndarray, flat_face_theta: np.ndarray, length_unit, time
         period = np.where(has, (o[ob.O_TL] - o[ob.O_T1]) / np.where(has, n_cyc, 1.0), np.nan)
         dchi = np.where(has, (o[ob.O_CHIL] - o[ob.O_CHI1]) / np.where(has, n_cyc, 1.0), np.nan)
         turn = fold_deg(np.degrees(dchi))
+        # chart-free alternative: mean folded rotation of the chord between successive maxima;
+        # used where the Euler chart was left (fixed-frame integration through theta = 90 deg)
+        chord_turn = np.degrees(o[ob.O_CR_SUM] / o[ob.O_CR_N])
+        turn = np.where(o[ob.O_STATUS] == ob.ST_FIXED_FRAME, chord_turn, turn)
         turn = np.where(has, turn, np.nan)
         abs_turn = np.abs(turn)
         n_sides = 360.0 / abs_turn
@@ -143,6 +155,9 @@ def label_fields(obs: np.ndarray, flat_face_theta: np.ndarray, length_unit, time
     steady = theta_range < th.steady_theta_tol_deg
     kind = np.where(loops != 0, CORNER_CODE["loop"],
                     np.where(cusp, CORNER_CODE["cusp"], CORNER_CODE["rounded"]))
+    with np.errstate(invalid="ignore"):
+        kind = np.where(side < th.retrace_ratio * o[ob.O_C_VMEAN] * o[ob.O_C_DUR],
+                        CORNER_CODE["cusp"], kind)
     kind = np.where(has & ~steady, kind, CORNER_CODE["none"]).astype(np.int8)
 
     label = np.full(n, CODE["ngon"], dtype=np.int8)
@@ -154,6 +169,10 @@ def label_fields(obs: np.ndarray, flat_face_theta: np.ndarray, length_unit, time
     label[(n_sides > th.max_polygon_sides) | ~distinct] = CODE["circle"]
     label[is_star & distinct] = CODE["star"]
     label[rho / side > th.near_straight_ratio] = CODE["near_straight"]
+    # the chord between maxima is a tiny part of the distance rolled: the path goes back and forth
+    # along a line (no spin: the ball rocks in a vertical plane through the upright position)
+    retraced = side < th.retrace_ratio * o[ob.O_C_VMEAN] * o[ob.O_C_DUR]
+    label[retraced] = CODE["near_straight"]
     label[~has] = CODE["unresolved"]
     label[n_cyc < th.min_cycles] = CODE["unresolved"]
     label[steady] = CODE["circle"]
@@ -165,6 +184,8 @@ def label_fields(obs: np.ndarray, flat_face_theta: np.ndarray, length_unit, time
     # touching the flat face invalidates the model from then on, so whatever followed (even the
     # Euler singularity) is its consequence; only a numerical blow-up is reported before it
     label[o[ob.O_TH_MIN] < np.broadcast_to(flat_face_theta, (n,))] = CODE["flat_face"]
+    with np.errstate(invalid="ignore"):
+        label[o[ob.O_DE] / np.abs(o[ob.O_E0]) > th.max_energy_drift] = CODE["inaccurate"]
     label[(status == ob.ST_NONFINITE) | ~np.isfinite(status)] = CODE["blew_up"]
 
     e0 = o[ob.O_E0]
@@ -183,6 +204,7 @@ def label_fields(obs: np.ndarray, flat_face_theta: np.ndarray, length_unit, time
         "star_points": np.where(label == CODE["star"], star_p, 0).astype(np.int16),
         "star_step": np.where(label == CODE["star"], star_q, 0).astype(np.int16),
         "n_theta_cycles": n_cyc.astype(np.int32),
+        "chord_turn_per_cycle_deg": fin(chord_turn),
         "theta_min_deg": np.degrees(o[ob.O_TH_MIN]),
         "theta_max_deg": np.degrees(o[ob.O_TH_MAX]),
         "max_friction_ratio": o[ob.O_FRIC],
@@ -190,4 +212,5 @@ def label_fields(obs: np.ndarray, flat_face_theta: np.ndarray, length_unit, time
         "energy_drift": o[ob.O_DE] / np.abs(e0),
         "jellett_drift": o[ob.O_DJ],
         "routh_drift": o[ob.O_DR],
+        "formulation": (o[ob.O_STATUS] == ob.ST_FIXED_FRAME).astype(np.int8),
     }

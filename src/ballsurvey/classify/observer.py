@@ -6,6 +6,8 @@ state and its accelerations at each sample; it tracks
 * theta extrema, the invariants' drift (energy, Jellett, Routh), friction demand |F_h|/N and min N;
 * theta maxima (events where thetadot turns from + to -): the first and last event's time, heading
   chi and centre position, and the previous one (for the chord between successive maxima);
+* the rotation of the chord between successive theta maxima, folded into (-pi, pi] and summed:
+  a second, chart-free measure of the net turn (it is what the fixed-frame integration uses);
 * per theta cycle (between successive maxima): the peak heading rate of the path, the total
   absolute turning, the smallest and mean speed, and the winding of the velocity relative to the
   ball's heading (a loop corner); the last complete cycle's values are kept.
@@ -36,18 +38,21 @@ SLOTS = (
     "acc_psid_max", "acc_turn_abs", "acc_v_min", "acc_v_int", "acc_quarter_turns",
     "cyc_psid_max", "cyc_turn_abs", "cyc_v_min", "cyc_v_mean", "cyc_winding", "cyc_duration",
     "p_thd", "p_t", "p_chi", "p_x", "p_y", "p_quadrant",
+    "chord_rot_sum", "chord_rot_n", "chord_ang",
 )
 N_OBS = len(SLOTS)
 (O_STATUS, O_T_STOP, O_TH_MIN, O_TH_MAX, O_E0, O_J0, O_R0, O_DE, O_DJ, O_DR, O_FRIC, O_NMIN,
  O_NMAX, O_T1, O_CHI1, O_X1, O_Y1, O_TL, O_CHIL, O_XL, O_YL, O_XP, O_YP,
  O_A_PSID, O_A_TURN, O_A_VMIN, O_A_VINT, O_A_QUART,
  O_C_PSID, O_C_TURN, O_C_VMIN, O_C_VMEAN, O_C_WIND, O_C_DUR,
- O_P_THD, O_P_T, O_P_CHI, O_P_X, O_P_Y, O_P_QUAD) = range(N_OBS)
+ O_P_THD, O_P_T, O_P_CHI, O_P_X, O_P_Y, O_P_QUAD,
+ O_CR_SUM, O_CR_N, O_CR_ANG) = range(N_OBS)
 
 # status codes written by the kernel (the labeller maps them to words)
 ST_RUNNING = 0.0
 ST_NONFINITE = 1.0
 ST_SINGULAR = 2.0
+ST_FIXED_FRAME = 3.0  # integrated in the fixed frame (Euler chart singular on the way): use chords
 
 jit = nb.njit(cache=True, nogil=True, error_model="numpy")
 
@@ -103,6 +108,9 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
         obs[O_A_QUART, i] = 0.0
         for k in range(O_C_PSID, O_C_DUR + 1):
             obs[k, i] = math.nan
+        obs[O_CR_SUM, i] = 0.0
+        obs[O_CR_N, i] = 0.0
+        obs[O_CR_ANG, i] = math.nan
     else:
         obs[O_TH_MIN, i] = min(obs[O_TH_MIN, i], th)
         obs[O_TH_MAX, i] = max(obs[O_TH_MAX, i], th)
@@ -142,6 +150,14 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
                 obs[O_C_WIND, i] = obs[O_A_QUART, i] / 4.0
                 obs[O_C_DUR, i] = dur
                 obs[O_XP, i], obs[O_YP, i] = obs[O_XL, i], obs[O_YL, i]
+            if obs[O_NMAX, i] >= 1.0:
+                ang = math.atan2(y_ev - obs[O_YL, i], x_ev - obs[O_XL, i])
+                if obs[O_NMAX, i] >= 2.0:
+                    rot = ang - obs[O_CR_ANG, i]
+                    rot -= 2.0 * math.pi * math.floor((rot + math.pi) / (2.0 * math.pi))
+                    obs[O_CR_SUM, i] += rot
+                    obs[O_CR_N, i] += 1.0
+                obs[O_CR_ANG, i] = ang
             obs[O_TL, i], obs[O_CHIL, i], obs[O_XL, i], obs[O_YL, i] = t_ev, chi_ev, x_ev, y_ev
             obs[O_NMAX, i] += 1.0
             obs[O_A_PSID, i] = abs(psid)

@@ -28,6 +28,7 @@ from .. import __version__
 from ..classify.labels import label_fields
 from ..classify.observer import O_T_STOP
 from ..integrate import ensemble
+from ..integrate.driver import run_launches
 from ..store import CONVENTIONS, FILL, REFERENCES, RESULT_VARIABLES, variable_attrs
 from .spec import AXIS_LONG_NAMES, AXIS_UNITS, BALL_AXES, LAUNCH_AXES, Spec, SpecError, load_spec
 
@@ -109,9 +110,9 @@ def compute_chunk(spec_text: str, spec_source: str, lo: int, hi: int, parallel: 
     tu0 = float(tu[0])
     if not np.all(tu == tu0):
         raise SpecError(f"{spec.source}: sweeping a or g is not supported (time unit must be common)")
-    dt_nd = spec.T / n_steps / tu0
-    _, obs, _ = ensemble.integrate(y0, params, dt_nd, n_steps, spec.method, block=spec.block,
-                                   observe_every=spec.observe_every, parallel=parallel)
+    obs = run_launches(y0, params, spec.T / tu0, spec.T / n_steps / tu0, spec.method,
+                       rtol=spec.rtol, atol=spec.atol, block=spec.block,
+                       observe_every=spec.observe_every, parallel=parallel)
     f = label_fields(obs, flat, a, tu, spec.thresholds)
     f["jellett_drift"] = f["jellett_drift"] * M * a**3 / tu
     f["routh_drift"] = f["routh_drift"] * M * a**2 / tu
@@ -215,6 +216,7 @@ def _global_attrs(spec: Spec, command: str, dt_used: float) -> dict:
         "spec_digest": spec.digest,
         "run_T_s": spec.T, "run_dt_s_requested": spec.dt, "run_dt_s": dt_used,
         "run_method": spec.method, "run_observe_every": spec.observe_every,
+        "run_rtol": spec.rtol, "run_atol": spec.atol,
     }
     for k, v in spec.ball.as_dict().items():
         unit = {"a": "m", "c": "m", "M": "kg", "A": "kg m2", "B": "kg m2", "g": "m s-2",

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..ball import PRESETS, Ball
 from ..classify.labels import Thresholds
-from ..integrate.tableaus import FIXED_STEP
+from ..integrate.driver import METHODS
 from ..store import DEFAULT_VARIABLES, RESULT_VARIABLES
 
 LAUNCH_AXES = ("theta0_deg", "thetadot0", "chidot0", "phidot0")
@@ -42,7 +42,7 @@ AXIS_LONG_NAMES = {
     "M": "mass", "A": "transverse moment of inertia about G", "B": "axial moment of inertia about G",
 }
 BALL_KEYS = ("preset", "a", "c", "M", "A", "B", "g", "cut_height")
-RUN_KEYS = ("T", "dt", "method", "observe_every", "block", "chunk")
+RUN_KEYS = ("T", "dt", "method", "rtol", "atol", "observe_every", "block", "chunk")
 OUTPUT_KEYS = ("file", "variables", "compression")
 POINT_KEYS = ("name",) + LAUNCH_AXES + ("chi0_deg",)
 TOP_KEYS = ("title", "ball", "launch", "points", "run", "classify", "output")
@@ -65,6 +65,8 @@ class Spec:
     T: float
     dt: float
     method: str
+    rtol: float
+    atol: float
     observe_every: int
     block: int
     chunk: int
@@ -260,8 +262,12 @@ def load_spec(path, *, text: str | None = None) -> Spec:
     if T / dt > 1e9:
         _err(src, "[run] dt", f"T/dt = {T / dt:.3g} steps is more than 1e9")
     method = run.get("method", "rk4")
-    if method not in FIXED_STEP:
-        _err(src, "[run] method", f"unknown method {method!r}; known: {', '.join(FIXED_STEP)}")
+    if method not in METHODS:
+        _err(src, "[run] method", f"unknown method {method!r}; known: {', '.join(METHODS)}")
+    rtol = _number(src, "[run] rtol", run.get("rtol", 1e-9), positive=True)
+    atol = _number(src, "[run] atol", run.get("atol", 1e-12), positive=True)
+    if rtol >= 1:
+        _err(src, "[run] rtol", f"must be < 1, got {rtol}")
     observe_every = _number(src, "[run] observe_every", run.get("observe_every", 4),
                             positive=True, integer=True)
     block = _number(src, "[run] block", run.get("block", 64), positive=True, integer=True)
@@ -291,6 +297,6 @@ def load_spec(path, *, text: str | None = None) -> Spec:
     # the digest is of the parsed content: comments and layout may change, the sweep may not
     digest = hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()
     return Spec(text=text, source=src, title=title, ball=base_ball, kind=kind, axes=axes,
-                points=points, chi0_deg=chi0, T=T, dt=dt, method=method,
+                points=points, chi0_deg=chi0, T=T, dt=dt, method=method, rtol=rtol, atol=atol,
                 observe_every=observe_every, block=block, chunk=chunk, thresholds=thresholds,
                 output=Path(ofile), variables=variables, compression=compression, digest=digest)

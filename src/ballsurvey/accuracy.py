@@ -1,0 +1,228 @@
+"""Work-precision report: error against run time for fixed-step RK4 and the adaptive pair.
+
+For each case (the paper's launches and the extreme ones) a reference is computed in the same run
+with the adaptive pair at tight tolerance in the Euler form, and confirmed by the fixed-frame form
+(their disagreement is printed as the reference's own uncertainty). Each setting is then timed on
+the one launch (serial kernel) and compared with it: final position error (m), final theta error
+(rad), largest drift of energy (relative), Jellett and Routh (SI), wall time (s), label.
+
+Also the label agreement over a small map against dt (and tolerance): the coarsest dt and loosest
+tolerance at which every label still agrees with the reference labels.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from .ball import Ball
+from .classify.labels import LABELS, Thresholds, label_fields
+from .integrate import ensemble
+from .integrate.adaptive import integrate_adaptive
+from .integrate.driver import run_launches
+from .integrate.ensemble import S_TH, S_X, S_Y
+
+RK4_DTS = (1e-2, 5e-3, 2e-3, 1e-3, 5e-4, 2e-4, 1e-4, 5e-5)
+RTOLS = (1e-4, 1e-6, 1e-8, 1e-10)
+REF_RTOL = 1e-12
+
+
+@dataclass(frozen=True)
+class Case:
+    name: str
+    theta0_deg: float
+    thetadot0: float
+    chidot0: float
+    phidot0: float
+    T: float = 20.0
+    ball: Ball = Ball()
+    note: str = ""
+
+
+def cases() -> list[Case]:
+    paper = Ball.paper()
+    return [
+        Case("fig7", -5.0, 0.0, 23.0, -3.0, note="paper: nearly straight"),
+        Case("fig9a", 20.0, 0.0, 10.0, -2.9, note="paper: approximately circular"),
+        Case("fig12a", -5.0, 0.0, 4.05, -3.0, note="paper: square"),
+        Case("fig12b", -10.0, 0.0, 2.3, -2.5, note="paper: triangle"),
+        Case("near_vertical", 89.2, 0.0, 2.0, -3.0, T=5.0, note="theta0 within 1 deg of 90"),
+        Case("high_spin", 10.0, 0.0, 200.0, -3.0, T=2.0, note="|chidot0| = 200 rad/s"),
+        Case("nearly_symmetric", 20.0, 0.0, 4.0, -3.0,
+             ball=replace(paper, c=1e-5, cut_height=0.0), note="c = 1e-5 m (c -> 0)"),
+        Case("heavy_bias", 10.0, 0.0, 4.0, -3.0, T=10.0,
+             ball=replace(paper, c=0.5 * paper.a, cut_height=0.0), note="c = a/2"),
+        Case("long_run", -5.0, 0.0, 4.05, -3.0, T=200.0, note="Fig. 12a for T = 200 s"),
+    ]
+
+
+def _launch(case: Case):
+    b = case.ball
+    tu = b.time_unit
+    y0 = ensemble.fast_state(0.0, 0.0, math.radians(case.theta0_deg), 0.0, 0.0,
+                             case.thetadot0 * tu, case.chidot0 * tu, case.phidot0 * tu)
+    return y0, b.nondim_params()[:, None], tu, b
+
+
+def _summary(case, obs, y_end, wall, ref_end):
+    y0, p, tu, b = _launch(case)
+    f = label_fields(obs, b.flat_face_theta_rad, b.a, tu)
+    dpos = math.hypot(y_end[S_X, 0] - ref_end[S_X], y_end[S_Y, 0] - ref_end[S_Y]) * b.a
+    dth = abs(y_end[S_TH, 0] - ref_end[S_TH])
+    return dict(pos_err_m=dpos, theta_err_rad=dth, energy_drift=float(f["energy_drift"][0]),
+                jellett_drift=float(f["jellett_drift"][0]) * b.M * b.a**3 / tu,
+                routh_drift=float(f["routh_drift"][0]) * b.M * b.a**2 / tu, wall_s=wall,
+                label=LABELS[int(f["label"][0])])
+
+
+def _timed(fn, repeats=1):
+    best = math.inf
+    out = None
+    for _ in range(repeats):
+        t = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t)
+    return out, best
+
+
+def reference(case: Case):
+    """(Euler-form reference final state, fixed-frame final state, their position gap in m)."""
+    y0, p, tu, b = _launch(case)
+    _, _, ye = integrate_adaptive(y0, p, case.T / tu, REF_RTOL, 1e-14, parallel=False)
+    _, _, yf = integrate_adaptive(y0, p, case.T / tu, REF_RTOL, 1e-14, parallel=False,
+                                  fixed_frame=True)
+    gap = math.hypot(ye[S_X, 0] - yf[S_X, 0], ye[S_Y, 0] - yf[S_Y, 0]) * b.a
+    ok = np.isfinite(ye[S_X, 0])
+    return (ye[:, 0] if ok else yf[:, 0]), yf[:, 0], gap
+
+
+def work_precision(case: Case, dts=RK4_DTS, rtols=RTOLS) -> list[dict]:
+    y0, p, tu, b = _launch(case)
+    ref, _, gap = reference(case)
+    rows = []
+    for dt in dts:
+        n = max(1, int(round(case.T / dt)))
+        if n > 5_000_000:
+            continue
+
+        def run():
+            return ensemble.integrate(y0, p, case.T / tu / n, n, block=1, observe_every=1,
+                                      parallel=False)
+
+        (y_end, obs, _), wall = _timed(run)
+        rows.append(dict(case=case.name, method="rk4", setting=dt, **_summary(case, obs, y_end,
+                                                                              wall, ref),
+                         ref_gap_m=gap))
+    for rtol in rtols:
+        def run():
+            return integrate_adaptive(y0, p, case.T / tu, rtol, rtol * 1e-3, parallel=False)
+
+        (obs, steps, y_end), wall = _timed(run)
+        rows.append(dict(case=case.name, method="dopri5", setting=rtol,
+                         **_summary(case, obs, y_end, wall, ref), ref_gap_m=gap))
+    return rows
+
+
+def label_agreement(dts=(2e-3, 1e-3, 5e-4, 2e-4, 1e-4), rtols=(1e-4, 1e-6, 1e-8), n=8,
+                    T=20.0) -> dict:
+    """Labels of an n x n (theta0, chidot0) map at phidot0 = -3 rad/s against the reference
+    (adaptive, rtol 1e-11). Returns {('rk4', dt) | ('dopri5', rtol): fraction agreeing}."""
+    b = Ball.paper()
+    tu, p = b.time_unit, b.nondim_params()
+    th, cd = np.meshgrid(np.linspace(-10, 30, n), np.linspace(1, 12, n), indexing="ij")
+    y0 = ensemble.fast_state(0, 0, np.radians(th.ravel()), 0, 0, 0, cd.ravel() * tu,
+                             -3.0 * tu)
+    params = np.repeat(p[:, None], n * n, 1)
+
+    def labels(obs):
+        return label_fields(obs, b.flat_face_theta_rad, b.a, tu, Thresholds())["label"]
+
+    ref = labels(run_launches(y0, params, T / tu, 1e-4 / tu, "dopri5", rtol=1e-11, atol=1e-14))
+    out = {}
+    for dt in dts:
+        out[("rk4", dt)] = float(np.mean(labels(run_launches(y0, params, T / tu, dt / tu)) == ref))
+    for rtol in rtols:
+        out[("dopri5", rtol)] = float(np.mean(labels(run_launches(
+            y0, params, T / tu, 1e-4 / tu, "dopri5", rtol=rtol, atol=rtol * 1e-3)) == ref))
+    return out
+
+
+def run_accuracy(out_dir="results/accuracy", quick=False, emit=print) -> dict:
+    """The whole report: table (printed), netCDF file and log-log plot in out_dir."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import matplotlib.ticker
+    import xarray as xr
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    cs = cases()
+    if quick:
+        cs = [c for c in cs if c.name in ("fig12a", "high_spin", "near_vertical")]
+        cs = [replace(c, T=min(c.T, 5.0)) for c in cs]
+    # warm the kernels (compilation is not part of any timing)
+    warm = replace(cs[0], T=0.01)
+    work_precision(warm, dts=(1e-3,), rtols=(1e-6,))
+    rows = []
+    for c in cs:
+        rows += work_precision(c, dts=RK4_DTS[2:6] if quick else RK4_DTS,
+                               rtols=RTOLS[1:3] if quick else RTOLS)
+    emit(f"{'case':<17}{'method':<8}{'setting':>9}{'pos err (m)':>13}{'theta err':>11}"
+         f"{'dE/E':>10}{'dJ':>10}{'dR':>10}{'time (s)':>10}  label")
+    for r in rows:
+        emit(f"{r['case']:<17}{r['method']:<8}{r['setting']:>9.0e}{r['pos_err_m']:>13.2e}"
+             f"{r['theta_err_rad']:>11.2e}{r['energy_drift']:>10.1e}{r['jellett_drift']:>10.1e}"
+             f"{r['routh_drift']:>10.1e}{r['wall_s']:>10.4f}  {r['label']}")
+    gaps = {r["case"]: r["ref_gap_m"] for r in rows}
+    emit("reference (dopri5, rtol 1e-12) vs fixed-frame form, final position gap (m): " +
+         ", ".join(f"{k} {v:.1e}" for k, v in gaps.items()))
+    agree = label_agreement(n=5 if quick else 8, T=10.0 if quick else 20.0,
+                            dts=(1e-3, 5e-4, 2e-4) if quick else (2e-3, 1e-3, 5e-4, 2e-4, 1e-4),
+                            rtols=(1e-6, 1e-8) if quick else (1e-4, 1e-6, 1e-8))
+    emit("label agreement with the reference over the map:")
+    for (m, s), frac in agree.items():
+        emit(f"  {m:<7}{s:>8.0e}  {100 * frac:6.1f} %")
+    coarse_dt = max((s for (m, s), f in agree.items() if m == "rk4" and f == 1.0), default=None)
+    loose_tol = max((s for (m, s), f in agree.items() if m == "dopri5" and f == 1.0), default=None)
+    emit(f"coarsest rk4 dt with every label agreeing: {coarse_dt}; loosest dopri5 rtol: {loose_tol}")
+
+    keys = ["pos_err_m", "theta_err_rad", "energy_drift", "jellett_drift", "routh_drift", "wall_s"]
+    ds = xr.Dataset(
+        {k: ("run", np.array([r[k] for r in rows]), {"units": u, "long_name": k.replace("_", " ")})
+         for k, u in zip(keys, ["m", "rad", "1", "kg m3 s-1", "kg m2 s-1", "s"])},
+        coords={"case": ("run", [r["case"] for r in rows]),
+                "method": ("run", [r["method"] for r in rows]),
+                "setting": ("run", [r["setting"] for r in rows],
+                            {"long_name": "dt (s) for rk4, rtol for dopri5"}),
+                "label": ("run", [r["label"] for r in rows])},
+        attrs={"Conventions": "CF-1.10", "title": "ballsurvey work-precision report",
+               "coarsest_rk4_dt_all_labels_agree": coarse_dt or -1.0,
+               "loosest_dopri5_rtol_all_labels_agree": loose_tol or -1.0},
+    )
+    ds.to_netcdf(out / "accuracy.nc")
+    ncol = 3
+    nrow = math.ceil(len(cs) / ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 3.4 * nrow), squeeze=False,
+                             constrained_layout=True)
+    for ax, c in zip(axes.flat, cs):
+        for m, style in (("rk4", "o-"), ("dopri5", "s-")):
+            rr = [r for r in rows if r["case"] == c.name and r["method"] == m]
+            e = np.array([max(r["pos_err_m"], 1e-16) for r in rr])
+            ax.loglog([r["wall_s"] for r in rr], e, style, label=m)
+        ax.axhline(max(gaps[c.name], 1e-16), color="grey", ls=":", lw=1, label="ref vs fixed frame")
+        ax.set_title(f"{c.name} (T = {c.T:g} s)", fontsize=10)
+        ax.set_xlabel("wall time (s)")
+        ax.set_ylabel("final position error (m)")
+        ax.legend(fontsize=7)
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+    for ax in list(axes.flat)[len(cs):]:
+        ax.set_visible(False)
+    fig.savefig(out / "accuracy.png", dpi=100)
+    plt.close(fig)
+    emit(f"wrote {out / 'accuracy.nc'} and {out / 'accuracy.png'}")
+    return {"rows": rows, "agreement": agree, "coarsest_dt": coarse_dt, "loosest_rtol": loose_tol}
