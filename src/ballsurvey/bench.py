@@ -131,3 +131,77 @@ def run_map_bench(n: int = 64, T: float = 20.0, dt: float = 1e-4, naive_sample: 
         f"{n * n / naive_est:10.1f} launches/s")
     out(f"  ratio naive / engine: {naive_est / wall:.1f}x")
     return {"wall_s": wall, "naive_estimate_s": naive_est}
+
+
+HEADLINE_SPEC = """
+title = "headline {n}^3 map"
+[launch]
+theta0_deg = {{start = -20.0, stop = 60.0, num = {n}}}
+thetadot0 = 0.0
+chidot0 = {{start = -12.0, stop = 12.0, num = {n}}}
+phidot0 = {{start = -8.0, stop = 8.0, num = {n}}}
+[run]
+T = {T}
+dt = {dt}
+mode = "period"
+cycles = 2
+chunk = 8192
+[output]
+file = "{out}"
+variables = ["label", "n_sides"]
+"""
+
+
+def run_headline(n: int = 100, T: float = 20.0, dt: float = 2e-4, sample: int = 1000,
+                 sample_dt: float = 1e-4, out_file=None, out=print, seed: int = 0) -> dict:
+    """An n^3 (theta0, chidot0, phidot0) map at T in period mode: wall time and peak memory, then
+    label agreement on `sample` random launches against full fixed-step integration to T at
+    sample_dt (the accuracy report shows every label converged from 1e-3 s down)."""
+    import resource
+    import tempfile
+    from pathlib import Path
+
+    import xarray as xr
+
+    from .classify.labels import label_fields
+    from .integrate.driver import run_launches
+    from .sweep import load_spec, run_sweep
+    from .sweep.engine import launch_table
+
+    with tempfile.TemporaryDirectory() as tmp:
+        target = Path(out_file) if out_file else Path(tmp) / "headline.nc"
+        text = HEADLINE_SPEC.format(n=n, T=T, dt=dt, out=target)
+        path = Path(tmp) / "headline.toml"
+        path.write_text(text)
+        spec = load_spec(path)
+        warm = load_spec(path, text=HEADLINE_SPEC.format(n=2, T=dt * 8, dt=dt,
+                                                         out=Path(tmp) / "w.nc"))
+        run_sweep(warm, command="bench warm-up", progress=False)
+        t0 = time.perf_counter()
+        run_sweep(spec, command="bench --headline", progress=None, force=True)
+        wall = time.perf_counter() - t0
+        peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+        labels = xr.open_dataset(target).label.values.ravel()
+        rng = np.random.default_rng(seed)
+        pick = np.sort(rng.choice(labels.size, size=min(sample, labels.size), replace=False))
+        ball = Ball.paper()
+        tu = ball.time_unit
+        rows = [launch_table(spec, int(i), int(i) + 1) for i in pick]
+        col = {k: np.concatenate([r[k] for r in rows]) for k in rows[0]}
+        y0 = ensemble.fast_state(0, 0, np.radians(col["theta0_deg"]), 0, 0, col["thetadot0"] * tu,
+                                 col["chidot0"] * tu, col["phidot0"] * tu)
+        params = np.repeat(ball.nondim_params()[:, None], len(pick), 1)
+        t1 = time.perf_counter()
+        obs = run_launches(y0, params, T / tu, sample_dt / tu)
+        t_full = time.perf_counter() - t1
+        ref = label_fields(obs, ball.flat_face_theta_rad, ball.a, tu)["label"]
+        agree = float(np.mean(ref == labels[pick]))
+    est_full = t_full * labels.size / len(pick)
+    out(f"ballsurvey headline: {n}^3 = {n ** 3} launches, T = {T} s, period mode (2 cycles), "
+        f"dt = {dt} s, {numba.get_num_threads()} numba threads")
+    out(f"  wall time {wall:.1f} s ({n ** 3 / wall:.0f} launches/s), peak memory {peak_mb:.0f} MB")
+    out(f"  labels agree with full integration (T = {T} s, dt = {sample_dt} s) on {len(pick)} "
+        f"random launches: {100 * agree:.1f} %")
+    out(f"  full integration of the whole map would take about {est_full / 60:.0f} min "
+        f"({est_full / wall:.0f}x)")
+    return {"wall_s": wall, "peak_mb": peak_mb, "agreement": agree, "full_estimate_s": est_full}

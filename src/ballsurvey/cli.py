@@ -15,6 +15,11 @@ def _cmd_bench(args):
     if args.map:
         run_map_bench(n=args.map, T=args.T, dt=args.dt)
         return
+    if args.headline:
+        from .bench import run_headline
+
+        run_headline(n=args.headline, T=args.T)
+        return
     run_bench(n_launches=args.launches, n_steps=args.steps, dt=args.dt, repeats=args.repeats,
               block=args.block, observe_every=args.observe_every)
 
@@ -128,6 +133,51 @@ def _cmd_accuracy(args):
     run_accuracy(args.output, quick=args.quick)
 
 
+def _cmd_find(args):
+    import numpy as np
+
+    from .find import NoSolution, find_launch, trace
+
+    n = args.n_sides or {"triangle": 3, "square": 4}.get(args.shape or "")
+    if not n:
+        raise UserError("give --shape triangle|square or --n-sides N")
+    launch = dict(theta0_deg=args.theta0_deg, thetadot0=args.thetadot0, chidot0=args.chidot0,
+                  phidot0=args.phidot0)
+    if args.trace_theta0:
+        start, stop, num = args.trace_theta0
+        rows = trace(n, np.linspace(start, stop, int(num)), launch, args.bracket)
+        lines = ["theta0_deg,chidot0_rad_s"] + [f"{a:.6g},{b:.9g}" for a, b in rows]
+        if args.output:
+            from pathlib import Path
+
+            Path(args.output).write_text("\n".join(lines) + "\n")
+            print(f"wrote {len(rows)} points of the n = {n} curve to {args.output}")
+        else:
+            print("\n".join(lines))
+        return
+    missing = [k for k, v in launch.items() if v is None and k != args.solve]
+    if missing:
+        raise UserError(f"give --{missing[0].replace('_', '-')} (only --solve {args.solve} is free)")
+    launch = {k: (0.0 if v is None else v) for k, v in launch.items()}
+    try:
+        sols = find_launch(n, launch, args.solve, args.bracket)
+    except NoSolution as exc:
+        print(f"ballsurvey find: no solution: {exc}", file=sys.stderr)
+        raise SystemExit(1)
+    unit = "deg" if args.solve == "theta0_deg" else "rad/s"
+    for s in sols:
+        print(f"{s.variable} = {s.value:.10g} {unit}: n_sides = {s.n_sides:.9f}, turn per cycle "
+              f"{s.turn_per_cycle_deg:.7f} deg, theta period {s.theta_period_s:.6f} s; integrated: "
+              f"{s.label}, closure {s.closure_m:.2e} m per circuit")
+
+
+def _cmd_refine(args):
+    from .refine import compare_with_full
+
+    compare_with_full(tuple(args.theta0), tuple(args.chidot0), n_coarse=args.coarse,
+                      levels=args.levels, phidot0=args.phidot0, T=args.T)
+
+
 def _cmd_paper(args):
     from .paper import reproduce
 
@@ -148,7 +198,10 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--observe-every", type=int, default=4, help="observer cadence (steps)")
     b.add_argument("--map", type=int, metavar="N",
                    help="instead: time an N x N sweep through the whole engine vs the naive loop")
-    b.add_argument("--T", type=float, default=20.0, help="duration (s) for --map")
+    b.add_argument("--headline", type=int, metavar="N", nargs="?", const=100,
+                   help="instead: an N^3 period-mode map (default 100) with label agreement "
+                        "against full integration on 1000 random launches")
+    b.add_argument("--T", type=float, default=20.0, help="duration (s) for --map / --headline")
     b.set_defaults(func=_cmd_bench)
 
     s = sub.add_parser("sweep", help="integrate and classify every launch of a spec; write a netCDF map")
@@ -199,6 +252,33 @@ def build_parser() -> argparse.ArgumentParser:
     pp = sub.add_parser("paper", help="reproduce the paper's numerical figures and compare numbers")
     pp.add_argument("-o", "--output", default="results/paper", help="folder for the PNGs")
     pp.set_defaults(func=_cmd_paper)
+
+    fd = sub.add_parser("find", help="solve for the launch condition that closes an exact n-gon")
+    g = fd.add_mutually_exclusive_group(required=True)
+    g.add_argument("--shape", choices=("triangle", "square"))
+    g.add_argument("--n-sides", type=int)
+    fd.add_argument("--theta0-deg", type=float, help="initial tilt (deg)")
+    fd.add_argument("--thetadot0", type=float, default=0.0, help="rad/s")
+    fd.add_argument("--chidot0", type=float, help="rad/s")
+    fd.add_argument("--phidot0", type=float, help="rad/s")
+    fd.add_argument("--solve", default="chidot0", choices=("chidot0", "theta0_deg", "phidot0"),
+                    help="the launch variable to solve for (default chidot0)")
+    fd.add_argument("--bracket", type=float, nargs=2, metavar=("LO", "HI"),
+                    help="search range of the solved variable")
+    fd.add_argument("--trace-theta0", type=float, nargs=3, metavar=("START", "STOP", "NUM"),
+                    help="trace the curve of exact n-gons in the (theta0, chidot0) plane")
+    fd.add_argument("-o", "--output", help="CSV file for --trace-theta0")
+    fd.set_defaults(func=_cmd_find)
+
+    rf = sub.add_parser("refine", help="refine a (theta0, chidot0) map only near regime boundaries "
+                                       "and compare it with the full fine grid")
+    rf.add_argument("--theta0", type=float, nargs=2, default=(-10.0, 30.0), metavar=("LO", "HI"))
+    rf.add_argument("--chidot0", type=float, nargs=2, default=(1.0, 12.0), metavar=("LO", "HI"))
+    rf.add_argument("--phidot0", type=float, default=-3.0, help="rad/s")
+    rf.add_argument("--coarse", type=int, default=9, help="coarse grid size per side")
+    rf.add_argument("--levels", type=int, default=4, help="halvings of the spacing")
+    rf.add_argument("--T", type=float, default=20.0, help="longest integration (s)")
+    rf.set_defaults(func=_cmd_refine)
 
     ac = sub.add_parser("accuracy", help="work-precision report: error against run time, RK4 and "
                                          "adaptive, paper and extreme cases")

@@ -19,8 +19,8 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
-from ..classify.observer import (N_OBS, O_STATUS, O_T_STOP, ST_FIXED_FRAME, ST_NONFINITE,
-                                 ST_SINGULAR, observe)
+from ..classify.observer import (N_OBS, O_NMAX, O_STATUS, O_T_STOP, ST_FIXED_FRAME,
+                                 ST_NONFINITE, ST_SINGULAR, observe)
 from ..physics import fixed
 from ..physics.euler import accelerations
 from .ensemble import N_FAST, fast_rhs
@@ -99,7 +99,7 @@ def _euler_view(v, chi_prev, chd_prev, h, out):
 
 @jit
 def _adaptive_one(y0, p, T, rtol, atol, a, b, berr, obs, i, cos_min, fixed_form, h_init,
-                  max_steps, traj, t_rec, y_last):
+                  max_steps, traj, t_rec, y_last, stop_after):
     """One launch, Dormand-Prince with FSAL; fixed_form: integrate the fixed-frame state.
 
     traj (cap, N_FAST), t_rec (cap,): the (Euler view of the) state at the start and at each
@@ -224,6 +224,8 @@ def _adaptive_one(y0, p, T, rtol, atol, a, b, berr, obs, i, cos_min, fixed_form,
                 if n_acc < cap:
                     for q in range(N_FAST):
                         traj[n_acc, q] = y[q]
+            if stop_after > 0 and obs[O_NMAX, i] >= stop_after:
+                break  # period mode: enough theta cycles seen
             fac = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err ** (-0.2)))
             h *= fac
         else:
@@ -250,27 +252,27 @@ def _adaptive_one(y0, p, T, rtol, atol, a, b, berr, obs, i, cos_min, fixed_form,
 
 @nb.njit(parallel=True, nogil=True, error_model="numpy")
 def _run_parallel(y0, params, T, rtol, atol, a, b, berr, obs, cos_min, fixed_form, h_init,
-                  max_steps, n_steps, y_end):
+                  max_steps, n_steps, y_end, stop_after):
     for i in nb.prange(y0.shape[1]):
         empty, t_empty = np.empty((0, N_FAST)), np.empty(0)
         n_steps[i] = _adaptive_one(y0[:, i], params[:, i], T, rtol, atol, a, b, berr, obs, i,
                                    cos_min, fixed_form, h_init, max_steps, empty, t_empty,
-                                   y_end[:, i])
+                                   y_end[:, i], stop_after)
 
 
 @jit
 def _run_serial(y0, params, T, rtol, atol, a, b, berr, obs, cos_min, fixed_form, h_init,
-                max_steps, n_steps, y_end):
+                max_steps, n_steps, y_end, stop_after):
     empty, t_empty = np.empty((0, N_FAST)), np.empty(0)
     for i in range(y0.shape[1]):
         n_steps[i] = _adaptive_one(y0[:, i], params[:, i], T, rtol, atol, a, b, berr, obs, i,
                                    cos_min, fixed_form, h_init, max_steps, empty, t_empty,
-                                   y_end[:, i])
+                                   y_end[:, i], stop_after)
 
 
 def integrate_adaptive(y0, params, T, rtol=1e-9, atol=1e-12, *, fixed_frame=False,
                        cos_min=1e-3, h_init=1e-3, max_steps=50_000_000, parallel=True,
-                       tableau: EmbeddedTableau = DOPRI5):
+                       tableau: EmbeddedTableau = DOPRI5, stop_after_maxima=0):
     """Adaptive integration of fast-state launches y0 (N_FAST, n) for non-dimensional time T.
 
     Returns (obs (N_OBS, n), accepted steps per launch (n,), y_end (N_FAST, n)). fixed_frame:
@@ -285,7 +287,8 @@ def integrate_adaptive(y0, params, T, rtol=1e-9, atol=1e-12, *, fixed_frame=Fals
     y_end = np.full((N_FAST, n), np.nan)
     run = _run_parallel if parallel else _run_serial
     run(y0, params, float(T), float(rtol), float(atol), tableau.a, tableau.b, tableau.b_err, obs,
-        float(cos_min), bool(fixed_frame), float(h_init), int(max_steps), steps, y_end)
+        float(cos_min), bool(fixed_frame), float(h_init), int(max_steps), steps, y_end,
+        int(stop_after_maxima))
     return obs, steps, y_end
 
 
@@ -303,6 +306,6 @@ def trajectory_adaptive(y0_col, params_col, T, rtol=1e-9, atol=1e-12, *, fixed_f
                       np.ascontiguousarray(params_col, dtype=np.float64), float(T), float(rtol),
                       float(atol), tableau.a, tableau.b, tableau.b_err, obs, 0, float(cos_min),
                       bool(fixed_frame), float(h_init), 50_000_000, traj, t_rec,
-                      np.empty(N_FAST))
+                      np.empty(N_FAST), 0)
     m = min(n + 1, capacity)
     return t_rec[:m], traj[:m], obs[:, 0]

@@ -34,31 +34,37 @@ def needs_fallback(obs) -> np.ndarray:
                                                  & (tilt > NEAR_SINGULAR_THETA))
 
 
-def fixed_frame_fallback(y0, params, T_nd, obs, parallel=True) -> np.ndarray:
+def fixed_frame_fallback(y0, params, T_nd, obs, parallel=True, stop_after_maxima=0) -> np.ndarray:
     """Re-run in the fixed frame the launches `needs_fallback` names; returns their indices."""
     bad = np.flatnonzero(needs_fallback(obs))
     if bad.size:
         o2, _, _ = integrate_adaptive(y0[:, bad], params[:, bad], T_nd, FALLBACK_RTOL, FALLBACK_ATOL,
-                                   fixed_frame=True, parallel=parallel and bad.size > 1)
+                                      fixed_frame=True, parallel=parallel and bad.size > 1,
+                                      stop_after_maxima=stop_after_maxima)
         obs[:, bad] = o2
     return bad
 
 
 def run_launches(y0, params, T_nd, dt_nd, method="rk4", *, rtol=1e-9, atol=1e-12, block=64,
-                 observe_every=4, parallel=True, fallback=True) -> np.ndarray:
+                 observe_every=4, parallel=True, fallback=True, cycles=0) -> np.ndarray:
     """Integrate fast-state launches for non-dimensional time T_nd; returns the observer slots.
 
     method: a fixed-step tableau (dt_nd is the step; T_nd must be a whole number of steps) or
-    "dopri5"/"adaptive" (rtol, atol; dt_nd is the first trial step)."""
+    "dopri5"/"adaptive" (rtol, atol; dt_nd is the first trial step).
+    cycles > 0 (period mode): each launch stops once it has completed that many theta cycles
+    (cycles + 1 theta maxima); T_nd is then the longest it may run."""
+    stop = cycles + 1 if cycles > 0 else 0
     if method in FIXED_STEP:
         n_steps = max(1, int(round(T_nd / dt_nd)))
         _, obs, _ = ensemble.integrate(y0, params, T_nd / n_steps, n_steps, method, block=block,
-                                       observe_every=observe_every, parallel=parallel)
+                                       observe_every=observe_every, parallel=parallel,
+                                       stop_after_maxima=stop)
     elif method in ADAPTIVE:
         obs, _, _ = integrate_adaptive(y0, params, T_nd, rtol, atol, h_init=dt_nd,
-                                    parallel=parallel, tableau=ADAPTIVE[method])
+                                       parallel=parallel, tableau=ADAPTIVE[method],
+                                       stop_after_maxima=stop)
     else:
         raise ValueError(f"unknown method {method!r}; known: {', '.join(METHODS)}")
     if fallback:
-        fixed_frame_fallback(y0, params, T_nd, obs, parallel=parallel)
+        fixed_frame_fallback(y0, params, T_nd, obs, parallel=parallel, stop_after_maxima=stop)
     return obs

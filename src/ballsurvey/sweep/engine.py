@@ -112,7 +112,8 @@ def compute_chunk(spec_text: str, spec_source: str, lo: int, hi: int, parallel: 
         raise SpecError(f"{spec.source}: sweeping a or g is not supported (time unit must be common)")
     obs = run_launches(y0, params, spec.T / tu0, spec.T / n_steps / tu0, spec.method,
                        rtol=spec.rtol, atol=spec.atol, block=spec.block,
-                       observe_every=spec.observe_every, parallel=parallel)
+                       observe_every=spec.observe_every, parallel=parallel,
+                       cycles=spec.cycles if spec.mode == "period" else 0)
     f = label_fields(obs, flat, a, tu, spec.thresholds)
     f["jellett_drift"] = f["jellett_drift"] * M * a**3 / tu
     f["routh_drift"] = f["routh_drift"] * M * a**2 / tu
@@ -216,7 +217,8 @@ def _global_attrs(spec: Spec, command: str, dt_used: float) -> dict:
         "spec_digest": spec.digest,
         "run_T_s": spec.T, "run_dt_s_requested": spec.dt, "run_dt_s": dt_used,
         "run_method": spec.method, "run_observe_every": spec.observe_every,
-        "run_rtol": spec.rtol, "run_atol": spec.atol,
+        "run_rtol": spec.rtol, "run_atol": spec.atol, "run_mode": spec.mode,
+        "run_cycles": spec.cycles,
     }
     for k, v in spec.ball.as_dict().items():
         unit = {"a": "m", "c": "m", "M": "kg", "A": "kg m2", "B": "kg m2", "g": "m s-2",

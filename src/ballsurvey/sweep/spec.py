@@ -42,7 +42,8 @@ AXIS_LONG_NAMES = {
     "M": "mass", "A": "transverse moment of inertia about G", "B": "axial moment of inertia about G",
 }
 BALL_KEYS = ("preset", "a", "c", "M", "A", "B", "g", "cut_height")
-RUN_KEYS = ("T", "dt", "method", "rtol", "atol", "observe_every", "block", "chunk")
+RUN_KEYS = ("T", "dt", "method", "rtol", "atol", "mode", "cycles", "observe_every", "block",
+            "chunk")
 OUTPUT_KEYS = ("file", "variables", "compression")
 POINT_KEYS = ("name",) + LAUNCH_AXES + ("chi0_deg",)
 TOP_KEYS = ("title", "ball", "launch", "points", "run", "classify", "output")
@@ -67,6 +68,8 @@ class Spec:
     method: str
     rtol: float
     atol: float
+    mode: str
+    cycles: int
     observe_every: int
     block: int
     chunk: int
@@ -268,6 +271,10 @@ def load_spec(path, *, text: str | None = None) -> Spec:
     atol = _number(src, "[run] atol", run.get("atol", 1e-12), positive=True)
     if rtol >= 1:
         _err(src, "[run] rtol", f"must be < 1, got {rtol}")
+    mode = run.get("mode", "full")
+    if mode not in ("full", "period"):
+        _err(src, "[run] mode", f"must be 'full' or 'period', got {mode!r}")
+    cycles = _number(src, "[run] cycles", run.get("cycles", 2), positive=True, integer=True)
     observe_every = _number(src, "[run] observe_every", run.get("observe_every", 4),
                             positive=True, integer=True)
     block = _number(src, "[run] block", run.get("block", 64), positive=True, integer=True)
@@ -297,6 +304,6 @@ def load_spec(path, *, text: str | None = None) -> Spec:
     # the digest is of the parsed content: comments and layout may change, the sweep may not
     digest = hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()
     return Spec(text=text, source=src, title=title, ball=base_ball, kind=kind, axes=axes,
-                points=points, chi0_deg=chi0, T=T, dt=dt, method=method, rtol=rtol, atol=atol,
+                points=points, chi0_deg=chi0, T=T, dt=dt, method=method, rtol=rtol, atol=atol, mode=mode, cycles=cycles,
                 observe_every=observe_every, block=block, chunk=chunk, thresholds=thresholds,
                 output=Path(ofile), variables=variables, compression=compression, digest=digest)

@@ -1,0 +1,133 @@
+"""Theta range, theta period and turn per cycle from the three conserved quantities, by quadrature.
+
+Non-dimensional (a = g = M = 1). With Routh's integral R, Jellett's J and the energy E fixed by the
+launch (ERRATA; Eqs. 11-12), every rate is a function of theta alone:
+
+    w_eta(th)  = R / sqrt(A B + A cos^2 th + B (sin th - c)^2)
+    chidot(th) = (B w_eta (sin th - c) - J) / (A cos^2 th)          (Jellett, L_G . r_GP = J)
+    phidot(th) = w_eta + chidot sin th
+    thetadot^2 = F(th) = 2 (E - U(th)) / (A + 1 - 2 c sin th + c^2)  (energy)
+
+with U the energy at thetadot = 0. The tilt oscillates between the roots theta_min < theta_max of F
+around theta0, and
+
+    period = 2 int dth / sqrt(F),     turn per cycle = 2 int chidot(th) dth / sqrt(F)
+
+over [theta_min, theta_max]. The substitution th = m + h sin(u) removes the inverse square-root
+end singularities, and Gauss-Legendre in u converges fast. No time stepping: an independent check
+of the integrators and of the period map.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .ball import Ball
+from .physics.euler import accelerations, energy, jellett, routh
+
+_U, _W = np.polynomial.legendre.leggauss(400)
+
+
+@dataclass(frozen=True)
+class CycleQuadrature:
+    theta_min: float  # rad
+    theta_max: float  # rad
+    period: float  # non-dimensional time
+    turn: float  # rad, unfolded change of chi per theta cycle
+
+    def si(self, ball: Ball) -> dict:
+        return {"theta_min_deg": math.degrees(self.theta_min),
+                "theta_max_deg": math.degrees(self.theta_max),
+                "theta_period_s": self.period * ball.time_unit,
+                "turn_per_cycle_deg": (math.degrees(self.turn) + 180.0) % 360.0 - 180.0}
+
+
+def _rates(th, R, J, c, A, B):
+    s, co = np.sin(th), np.cos(th)
+    w = R / np.sqrt(A * B + A * co * co + B * (s - c) ** 2)
+    chd = (B * w * (s - c) - J) / (A * co * co)
+    phd = w + chd * s
+    return w, chd, phd
+
+
+def _F(th, E, R, J, c, A, B):
+    s, co = np.sin(th), np.cos(th)
+    w, chd, phd = _rates(th, R, J, c, A, B)
+    u = 0.5 * A * chd**2 * co**2 + 0.5 * B * w**2 + 0.5 * (phd - c * chd) ** 2 * co**2 + 1 - c * s
+    return 2 * (E - u) / (A + 1 - 2 * c * s + c * c)
+
+
+def _root(f, a, b):
+    """Bisection for the sign change of f between a (f > 0) and b (f <= 0)."""
+    fa = f(a)
+    for _ in range(200):
+        m = 0.5 * (a + b)
+        if m == a or m == b:
+            break
+        if (f(m) > 0) == (fa > 0):
+            a = m
+        else:
+            b = m
+    return 0.5 * (a + b)
+
+
+def cycle_by_quadrature(theta0: float, thetadot0: float, chidot0: float, phidot0: float,
+                        params) -> CycleQuadrature | None:
+    """Non-dimensional launch -> the theta cycle by quadrature; None for a steady launch (no
+    oscillation) or one whose tilt would reach +-90 deg (outside the Euler chart)."""
+    c, A, B = (float(v) for v in params)
+    s0, c0 = math.sin(theta0), math.cos(theta0)
+    args = (s0, c0, thetadot0, chidot0, phidot0, c, A, B)
+    E, J, R = energy(*args), jellett(*args), routh(*args)
+
+    def f(th):
+        return float(_F(np.array(th), E, R, J, c, A, B))
+
+    lim = math.radians(89.999)
+    step = math.radians(0.25)
+    if thetadot0 == 0.0:
+        thdd = accelerations(s0, c0, 0.0, chidot0, phidot0, c, A, B)[0]
+        if abs(thdd) < 1e-13:
+            return None  # steady
+        eps = 1e-7 * (1 if thdd > 0 else -1)
+        start = theta0 + eps
+        if f(start) <= 0:
+            return None
+    else:
+        start = theta0
+    ends = []
+    for direction in (-1, 1):
+        a = start
+        while True:
+            b = a + direction * step
+            if abs(b) >= lim:
+                return None
+            if f(b) <= 0:
+                ends.append(_root(f, a, b))
+                break
+            a = b
+    lo, hi = ends
+    if thetadot0 == 0.0:  # theta0 itself is the turning point on its side
+        lo, hi = (theta0, hi) if start > theta0 else (lo, theta0)
+    m, h = 0.5 * (hi + lo), 0.5 * (hi - lo)
+    u = 0.5 * math.pi * _U
+    th = m + h * np.sin(u)
+    F = _F(th, E, R, J, c, A, B)
+    jac = h * np.cos(u) * 0.5 * math.pi
+    good = F > 0
+    inv = np.where(good, jac / np.sqrt(np.where(good, F, 1.0)), 0.0)
+    _, chd, _ = _rates(th, R, J, c, A, B)
+    period = 2 * float(np.sum(_W * inv))
+    turn = 2 * float(np.sum(_W * inv * chd))
+    return CycleQuadrature(lo, hi, period, turn)
+
+
+def launch_cycle(theta0_deg, thetadot0, chidot0, phidot0, ball: Ball | None = None) -> dict | None:
+    """SI launch (deg, rad/s) -> theta range (deg), period (s), folded turn per cycle (deg)."""
+    ball = ball or Ball.paper()
+    tu = ball.time_unit
+    q = cycle_by_quadrature(math.radians(theta0_deg), thetadot0 * tu, chidot0 * tu, phidot0 * tu,
+                            ball.nondim_params())
+    return None if q is None else q.si(ball)
