@@ -107,7 +107,9 @@ def _adaptive_one(y0, p, T, rtol, atol, a, b, berr, obs, i, cos_min, fixed_form,
     the) state; in the fixed-frame form its phi is NaN."""
     ns = b.shape[0]
     nv = fixed.N_FIXED if fixed_form else N_FAST
-    nerr = 8  # error measured on x, y and the angles / rates (not on the sin/cos copies)
+    # error measured on every fixed-frame variable, or on the Euler state's x, y, angles and
+    # rates (its first 8 slots; the sin/cos copies are redundant)
+    n_check = nv if fixed_form else 8
     y = np.empty(nv)
     ev = np.empty(N_FAST)  # Euler view for the observer
     ek = np.empty(N_FAST)
@@ -176,22 +178,13 @@ def _adaptive_one(y0, p, T, rtol, atol, a, b, berr, obs, i, cos_min, fixed_form,
                 _fast_rhs_into(yt, p, k[s])
         # error estimate on the physical components
         err = 0.0
-        if fixed_form:
-            for q in range(nv):
-                e = 0.0
-                for j in range(ns):
-                    e += berr[j] * k[j, q]
-                sc = atol + rtol * max(abs(y[q]), abs(yn[q]))
-                err += (h * e / sc) ** 2
-            err = math.sqrt(err / nv)
-        else:
-            for q in range(nerr):
-                e = 0.0
-                for j in range(ns):
-                    e += berr[j] * k[j, q]
-                sc = atol + rtol * max(abs(y[q]), abs(yn[q]))
-                err += (h * e / sc) ** 2
-            err = math.sqrt(err / nerr)
+        for q in range(n_check):
+            e = 0.0
+            for j in range(ns):
+                e += berr[j] * k[j, q]
+            sc = atol + rtol * max(abs(y[q]), abs(yn[q]))
+            err += (h * e / sc) ** 2
+        err = math.sqrt(err / n_check)
         if not math.isfinite(err):
             if h < 1e-14 * max(T, 1.0):
                 status = ST_NONFINITE

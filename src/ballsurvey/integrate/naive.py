@@ -16,24 +16,31 @@ jit = nb.njit(cache=True, nogil=True, error_model="numpy")
 
 
 @jit
+def _rk4_step(rhs, u, p, dt, k1, k2, k3, k4, tmp):
+    """One classical RK4 step in place for any jitted rhs(u, p, out)."""
+    n = u.shape[0]
+    rhs(u, p, k1)
+    for q in range(n):
+        tmp[q] = u[q] + 0.5 * dt * k1[q]
+    rhs(tmp, p, k2)
+    for q in range(n):
+        tmp[q] = u[q] + 0.5 * dt * k2[q]
+    rhs(tmp, p, k3)
+    for q in range(n):
+        tmp[q] = u[q] + dt * k3[q]
+    rhs(tmp, p, k4)
+    for q in range(n):
+        u[q] += dt / 6.0 * (k1[q] + 2.0 * k2[q] + 2.0 * k3[q] + k4[q])
+
+
+@jit
 def rk4_euler(u0, p, dt, n_steps):
     """Scalar fixed-step RK4 on the Euler-angle state; returns the final state."""
     n = u0.shape[0]
     u = u0.copy()
     k1, k2, k3, k4, tmp = (np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n))
     for _ in range(n_steps):
-        euler.rhs(u, p, k1)
-        for v in range(n):
-            tmp[v] = u[v] + 0.5 * dt * k1[v]
-        euler.rhs(tmp, p, k2)
-        for v in range(n):
-            tmp[v] = u[v] + 0.5 * dt * k2[v]
-        euler.rhs(tmp, p, k3)
-        for v in range(n):
-            tmp[v] = u[v] + dt * k3[v]
-        euler.rhs(tmp, p, k4)
-        for v in range(n):
-            u[v] += dt / 6.0 * (k1[v] + 2.0 * k2[v] + 2.0 * k3[v] + k4[v])
+        _rk4_step(euler.rhs, u, p, dt, k1, k2, k3, k4, tmp)
         if not math.isfinite(u[0] + u[1] + u[5] + u[6] + u[7]):
             break
     return u
@@ -48,18 +55,7 @@ def rk4_fixed_frame(v0, p, dt, n_steps, out_every):
     out = np.empty((n_steps // out_every + 1, n))
     out[0] = v
     for s in range(n_steps):
-        fixed.rhs(v, p, k1)
-        for q in range(n):
-            tmp[q] = v[q] + 0.5 * dt * k1[q]
-        fixed.rhs(tmp, p, k2)
-        for q in range(n):
-            tmp[q] = v[q] + 0.5 * dt * k2[q]
-        fixed.rhs(tmp, p, k3)
-        for q in range(n):
-            tmp[q] = v[q] + dt * k3[q]
-        fixed.rhs(tmp, p, k4)
-        for q in range(n):
-            v[q] += dt / 6.0 * (k1[q] + 2.0 * k2[q] + 2.0 * k3[q] + k4[q])
+        _rk4_step(fixed.rhs, v, p, dt, k1, k2, k3, k4, tmp)
         if (s + 1) % out_every == 0:
             out[(s + 1) // out_every] = v
     return out
