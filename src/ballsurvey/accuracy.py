@@ -150,6 +150,44 @@ def label_agreement(dts=(2e-3, 1e-3, 5e-4, 2e-4, 1e-4), rtols=(1e-4, 1e-6, 1e-8)
     return out
 
 
+def quadrature_check(n=60, seed=3, T=20.0, dt=1e-4) -> dict:
+    """Quadrature (no time stepping) against full integration and against the period mode on
+    random launches: the largest disagreement in theta period (relative), turn per cycle (deg)
+    and theta_max (deg). Launches that are steady, reach |theta| > 88 deg or get a status are
+    skipped (the quadrature needs the Euler chart)."""
+    from .quadrature import cycle_by_quadrature
+
+    b = Ball.paper()
+    tu, p = b.time_unit, b.nondim_params()
+    rng = np.random.default_rng(seed)
+    th = rng.uniform(-20, 60, n)
+    td, cd, pd = rng.uniform(-2, 2, n), rng.uniform(-12, 12, n), rng.uniform(-8, 8, n)
+    y0 = ensemble.fast_state(0, 0, np.radians(th), 0, 0, td * tu, cd * tu, pd * tu)
+    params = np.repeat(p[:, None], n, 1)
+    runs = {"full": label_fields(run_launches(y0, params, T / tu, dt / tu), b.flat_face_theta_rad,
+                                 b.a, tu),
+            "period": label_fields(run_launches(y0, params, T / tu, dt / tu, cycles=2),
+                                   b.flat_face_theta_rad, b.a, tu)}
+    worst = {k: {"period_rel": 0.0, "turn_deg": 0.0, "theta_max_deg": 0.0} for k in runs}
+    used = 0
+    for i in range(n):
+        q = cycle_by_quadrature(math.radians(th[i]), td[i] * tu, cd[i] * tu, pd[i] * tu, p)
+        if q is None or math.degrees(q.theta_max) > 88:
+            continue
+        qs = q.si(b)
+        if any(LABELS[r["label"][i]] in ("inaccurate", "blew_up", "unresolved", "singular")
+               or r["formulation"][i] for r in runs.values()):
+            continue
+        used += 1
+        for k, r in runs.items():
+            w = worst[k]
+            w["period_rel"] = max(w["period_rel"], abs(r["theta_period_s"][i] / qs["theta_period_s"] - 1))
+            dturn = (r["turn_per_cycle_deg"][i] - qs["turn_per_cycle_deg"] + 180) % 360 - 180
+            w["turn_deg"] = max(w["turn_deg"], abs(dturn))
+            w["theta_max_deg"] = max(w["theta_max_deg"], abs(r["theta_max_deg"][i] - qs["theta_max_deg"]))
+    return {"launches": used, **worst}
+
+
 def run_accuracy(out_dir="results/accuracy", quick=False, emit=print) -> dict:
     """The whole report: table (printed), netCDF file and log-log plot in out_dir."""
     import matplotlib
@@ -190,6 +228,13 @@ def run_accuracy(out_dir="results/accuracy", quick=False, emit=print) -> dict:
     coarse_dt = max((s for (m, s), f in agree.items() if m == "rk4" and f == 1.0), default=None)
     loose_tol = max((s for (m, s), f in agree.items() if m == "dopri5" and f == 1.0), default=None)
     emit(f"coarsest rk4 dt with every label agreeing: {coarse_dt}; loosest dopri5 rtol: {loose_tol}")
+    qc = quadrature_check(n=20 if quick else 60)
+    emit(f"quadrature (no time stepping) vs integration on {qc['launches']} random launches, "
+         "largest disagreement:")
+    for k in ("full", "period"):
+        w = qc[k]
+        emit(f"  {k:<7} theta period {w['period_rel']:.1e} (relative), turn per cycle "
+             f"{w['turn_deg']:.1e} deg, theta_max {w['theta_max_deg']:.1e} deg")
 
     keys = ["pos_err_m", "theta_err_rad", "energy_drift", "jellett_drift", "routh_drift", "wall_s"]
     ds = xr.Dataset(
