@@ -141,3 +141,17 @@ def test_work_precision_rows_and_label_agreement():
     assert all(r["label"] == "square" for r in rows)
     agree = label_agreement(dts=(5e-4,), rtols=(1e-8,), n=3, T=8.0)
     assert all(v == 1.0 for v in agree.values())
+
+
+def test_launches_grazing_the_vertical_get_the_labels_of_their_neighbours():
+    # chidot0 = 3.5 rad/s, phidot0 = -3: theta_max 89.6..89.98 deg. RK4 in the Euler form loses
+    # energy accuracy there (chidot ~ 1/cos theta); the driver re-integrates in the fixed frame,
+    # where heading rate, friction and normal force are computed without the chart
+    th0 = np.array([-10.0, -5.0, -4.0, -3.0, -2.0, -1.0, 3.0])
+    y0 = _y0(th0, np.full(7, 3.5), np.full(7, -3.0))
+    f = label_fields(run_launches(y0, np.repeat(P[:, None], 7, 1), 20 / TU, 1e-4 / TU),
+                     B.flat_face_theta_rad, B.a, TU)
+    assert np.all(f["label"] == CODE["square"]), f["label"]
+    assert f["formulation"][3:5].all()  # the two that pass within 0.05 deg of vertical
+    assert np.all(np.diff(f["n_sides"]) > 0)  # n varies smoothly with theta0
+    assert np.all(f["max_friction_ratio"] < 0.09)

@@ -137,7 +137,10 @@ def label_fields(obs: np.ndarray, flat_face_theta: np.ndarray, length_unit, time
         n_sides = 360.0 / abs_turn
         side = np.hypot(o[ob.O_XL] - o[ob.O_XP], o[ob.O_YL] - o[ob.O_YP])
         rho = side / (2.0 * np.sin(np.radians(abs_turn) / 2.0))  # radius of the corners' circle
-        raw = np.degrees(dchi) + 360.0 * o[ob.O_C_WIND]  # heading change of the path per cycle
+        # heading change of the path per cycle: exact from chi and the winding in the Euler chart;
+        # in the fixed frame (chart left near theta = 90 deg) the integrated heading rate
+        raw = np.where(o[ob.O_STATUS] == ob.ST_FIXED_FRAME, np.degrees(o[ob.O_C_RAW]),
+                       np.degrees(dchi) + 360.0 * o[ob.O_C_WIND])
         loops = np.rint((raw - turn) / 360.0)
         raw_rad = np.abs(np.radians(raw))
         sharp = o[ob.O_C_PSID] * o[ob.O_C_DUR] / raw_rad  # peak / mean rate of the raw turn

@@ -9,7 +9,7 @@ state and its accelerations at each sample; it tracks
 * the rotation of the chord between successive theta maxima, folded into (-pi, pi] and summed:
   a second, chart-free measure of the net turn (it is what the fixed-frame integration uses);
 * per theta cycle (between successive maxima): the peak heading rate of the path, the total
-  absolute turning, the smallest and mean speed, and the winding of the velocity relative to the
+  absolute and signed turning, the smallest and mean speed, and the winding of the velocity relative to the
   ball's heading (a loop corner); the last complete cycle's values are kept.
 
 Over one theta cycle the reduced state (theta, thetadot, chidot, phidot) returns to itself, so the
@@ -39,6 +39,7 @@ SLOTS = (
     "cyc_psid_max", "cyc_turn_abs", "cyc_v_min", "cyc_v_mean", "cyc_winding", "cyc_duration",
     "p_thd", "p_t", "p_chi", "p_x", "p_y", "p_quadrant",
     "chord_rot_sum", "chord_rot_n", "chord_ang",
+    "acc_turn_signed", "cyc_raw_turn",
 )
 N_OBS = len(SLOTS)
 (O_STATUS, O_T_STOP, O_TH_MIN, O_TH_MAX, O_E0, O_J0, O_R0, O_DE, O_DJ, O_DR, O_FRIC, O_NMIN,
@@ -46,7 +47,7 @@ N_OBS = len(SLOTS)
  O_A_PSID, O_A_TURN, O_A_VMIN, O_A_VINT, O_A_QUART,
  O_C_PSID, O_C_TURN, O_C_VMIN, O_C_VMEAN, O_C_WIND, O_C_DUR,
  O_P_THD, O_P_T, O_P_CHI, O_P_X, O_P_Y, O_P_QUAD,
- O_CR_SUM, O_CR_N, O_CR_ANG) = range(N_OBS)
+ O_CR_SUM, O_CR_N, O_CR_ANG, O_A_RAW, O_C_RAW) = range(N_OBS)
 
 # status codes written by the kernel (the labeller maps them to words)
 ST_RUNNING = 0.0
@@ -66,8 +67,12 @@ def _quadrant(u, w):
 
 
 @jit
-def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, chdd, phdd, c, A, B):
-    """Update launch i's slots with one sample (time t, step dt since the previous sample)."""
+def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, chdd, phdd, c, A, B,
+            psid_in=math.nan, fric_in=math.nan, normal_in=math.nan):
+    """Update launch i's slots with one sample (time t, step dt since the previous sample).
+
+    psid_in, fric_in, normal_in: the path's heading rate, |F_h|/N and N/(M g) computed without
+    the Euler chart (fixed-frame integration near theta = 90 deg); NaN: compute them here."""
     # --- speeds in the frame turning with the heading chi (Eqs. 6-7) and their rates -----------
     a1 = 1.0 - c * sth
     u = (phd - c * chd) * cth
@@ -81,6 +86,8 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
     ah_perp = wd + u * chd
     normal = 1.0 + c * (sth * thd * thd - cth * thdd)  # N / (M g), Eq. (20)
     fric = math.sqrt(ah_par * ah_par + ah_perp * ah_perp) / normal if normal > 0.0 else math.inf
+    if math.isfinite(psid_in):
+        psid, fric, normal = psid_in, fric_in, normal_in
     # --- invariants -----------------------------------------------------------------------------
     w_eta = phd - chd * sth
     e = (0.5 * A * (thd * thd + chd * chd * cth * cth) + 0.5 * B * w_eta * w_eta
@@ -111,6 +118,8 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
         obs[O_CR_SUM, i] = 0.0
         obs[O_CR_N, i] = 0.0
         obs[O_CR_ANG, i] = math.nan
+        obs[O_A_RAW, i] = 0.0
+        obs[O_C_RAW, i] = math.nan
     else:
         obs[O_TH_MIN, i] = min(obs[O_TH_MIN, i], th)
         obs[O_TH_MAX, i] = max(obs[O_TH_MAX, i], th)
@@ -122,6 +131,7 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
         # per-cycle accumulators (rectangle rule over the previous interval)
         obs[O_A_PSID, i] = max(obs[O_A_PSID, i], abs(psid))
         obs[O_A_TURN, i] += abs(psid) * dt
+        obs[O_A_RAW, i] += psid * dt
         obs[O_A_VMIN, i] = min(obs[O_A_VMIN, i], speed)
         obs[O_A_VINT, i] += speed * dt
         dq = quad - obs[O_P_QUAD, i]
@@ -149,6 +159,7 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
                 obs[O_C_VMEAN, i] = obs[O_A_VINT, i] / dur
                 obs[O_C_WIND, i] = obs[O_A_QUART, i] / 4.0
                 obs[O_C_DUR, i] = dur
+                obs[O_C_RAW, i] = obs[O_A_RAW, i]
                 obs[O_XP, i], obs[O_YP, i] = obs[O_XL, i], obs[O_YL, i]
             if obs[O_NMAX, i] >= 1.0:
                 ang = math.atan2(y_ev - obs[O_YL, i], x_ev - obs[O_XL, i])
@@ -162,6 +173,7 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
             obs[O_NMAX, i] += 1.0
             obs[O_A_PSID, i] = abs(psid)
             obs[O_A_TURN, i] = 0.0
+            obs[O_A_RAW, i] = 0.0
             obs[O_A_VMIN, i] = speed
             obs[O_A_VINT, i] = 0.0
             obs[O_A_QUART, i] = 0.0

@@ -71,6 +71,27 @@ def _observe_fast(obs, i, first, t, dt, y, k, p):
 
 
 @jit
+def _chart_free(v, dv, c):
+    """Heading rate of the path, |F_h|/N and N/(M g) from the fixed-frame state and its rate.
+
+    v_G = w x s, a_G = wdot x s + w x (c w x e) with s = c e + z_hat (physics/fixed.py)."""
+    ex, ey, ez = v[2], v[3], v[4]
+    wx, wy, wz = v[8], v[9], v[10]
+    sx, sy, sz = c * ex, c * ey, c * ez + 1.0
+    vx = wy * sz - wz * sy
+    vy = wz * sx - wx * sz
+    edx, edy, edz = dv[2], dv[3], dv[4]
+    ax = (dv[9] * sz - dv[10] * sy) + c * (wy * edz - wz * edy)
+    ay = (dv[10] * sx - dv[8] * sz) + c * (wz * edx - wx * edz)
+    az = (dv[8] * sy - dv[9] * sx) + c * (wx * edy - wy * edx)
+    v2 = vx * vx + vy * vy
+    psid = (vx * ay - vy * ax) / v2 if v2 > 0.0 else 0.0
+    normal = 1.0 + az
+    fric = math.sqrt(ax * ax + ay * ay) / normal if normal > 0.0 else math.inf
+    return psid, fric, normal
+
+
+@jit
 def _euler_view(v, chi_prev, chd_prev, h, out):
     """Fixed-frame state -> the fast Euler state in `out` (theta, chi, rates, sin/cos).
 
@@ -204,7 +225,10 @@ def _adaptive_one(y0, p, T, rtol, atol, a, b, berr, obs, i, cos_min, fixed_form,
                     ev[4] = math.nan  # phi is not recovered in the fixed-frame view
                     _fast_rhs_into(ev, p, ek)
                     if ev[9] > 1e-6:
-                        _observe_fast(obs, i, False, t, h, ev, ek, p)
+                        psid, fric, normal = _chart_free(y, k[0], p[0])
+                        observe(obs, i, False, t, h, ev[0], ev[1], ev[2], ev[8], ev[9], ev[3],
+                                ev[5], ev[6], ev[7], ek[5], ek[6], ek[7], p[0], p[1], p[2],
+                                psid, fric, normal)
                     chi_prev, chd_prev = ev[3], ev[6]
                 if n_acc < cap:
                     for q in range(N_FAST):

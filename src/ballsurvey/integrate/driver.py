@@ -1,7 +1,7 @@
 """One entry point for integrating launches: fixed-step or adaptive, with the singular fallback.
 
-Launches whose tilt reaches the Euler form's singularity (|theta| -> 90 deg), or that blew up after
-passing 80 deg, are integrated again
+Launches whose tilt reaches the Euler form's singularity (|theta| -> 90 deg), or that blew up or
+lost energy accuracy after passing 80 deg, are integrated again
 in the fixed-frame (Euler-free) form with the adaptive pair at tight tolerance, so no launch ends
 with a label computed from a broken chart: its observer record is replaced and marked
 ST_FIXED_FRAME (stored as `formulation = fixed_frame`).
@@ -12,7 +12,9 @@ import numpy as np
 
 import math
 
-from ..classify.observer import O_STATUS, O_TH_MAX, O_TH_MIN, ST_NONFINITE, ST_SINGULAR
+from ..classify.labels import Thresholds
+from ..classify.observer import (O_DE, O_E0, O_STATUS, O_TH_MAX, O_TH_MIN, ST_NONFINITE,
+                                 ST_SINGULAR)
 from . import ensemble
 from .adaptive import ADAPTIVE, integrate_adaptive
 from .tableaus import FIXED_STEP
@@ -25,13 +27,16 @@ FALLBACK_ATOL = 1e-12
 NEAR_SINGULAR_THETA = math.radians(80.0)
 
 
-def needs_fallback(obs) -> np.ndarray:
-    """Launches (bool mask) flagged singular, or that blew up after |theta| passed
-    NEAR_SINGULAR_THETA: the Euler chart's failures."""
+def needs_fallback(obs, max_energy_drift: float = Thresholds.max_energy_drift) -> np.ndarray:
+    """Launches (bool mask) flagged singular, or that blew up or drifted in energy by more than
+    max_energy_drift after |theta| passed NEAR_SINGULAR_THETA: the Euler chart's failures (there
+    chidot ~ 1 / cos theta outruns the step). Drift or blow-up at low tilt is the step's fault
+    and stays reported as such."""
     with np.errstate(invalid="ignore"):
         tilt = np.maximum(np.abs(obs[O_TH_MAX]), np.abs(obs[O_TH_MIN]))
-        return (obs[O_STATUS] == ST_SINGULAR) | ((obs[O_STATUS] == ST_NONFINITE)
-                                                 & (tilt > NEAR_SINGULAR_THETA))
+        bad_num = (obs[O_STATUS] == ST_NONFINITE) | (obs[O_DE] / np.abs(obs[O_E0])
+                                                     > max_energy_drift)
+        return (obs[O_STATUS] == ST_SINGULAR) | (bad_num & (tilt > NEAR_SINGULAR_THETA))
 
 
 def fixed_frame_fallback(y0, params, T_nd, obs, parallel=True, stop_after_maxima=0) -> np.ndarray:
