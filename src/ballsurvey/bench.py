@@ -205,3 +205,50 @@ def run_headline(n: int = 100, T: float = 20.0, dt: float = 2e-4, sample: int = 
     out(f"  full integration of the whole map would take about {est_full / 60:.0f} min "
         f"({est_full / wall:.0f}x)")
     return {"wall_s": wall, "peak_mb": peak_mb, "agreement": agree, "full_estimate_s": est_full}
+
+
+def run_period_bench(n: int = 40, T: float = 20.0, dt: float = 1e-4, out=print) -> dict:
+    """Period mode against full integration on an n x n (theta0, chidot0) map at phidot0 = -3:
+    wall times and label agreement; `periodic_path` against `simulate` on the paper's launches
+    (largest position difference over T); and the quadrature's time per launch."""
+    from .classify.labels import label_fields
+    from .integrate.driver import run_launches
+    from .period import periodic_path
+    from .quadrature import launch_cycle
+    from .simulate import simulate
+
+    ball = Ball.paper()
+    tu, p = ball.time_unit, ball.nondim_params()
+    th, cd = np.meshgrid(np.linspace(-10, 30, n), np.linspace(1, 12, n), indexing="ij")
+    y0 = ensemble.fast_state(0, 0, np.radians(th.ravel()), 0, 0, 0, cd.ravel() * tu, -3.0 * tu)
+    params = np.repeat(p[:, None], n * n, 1)
+    for cycles in (0, 2):  # compile both
+        run_launches(y0[:, :2], params[:, :2], 0.01 / tu, dt / tu, cycles=cycles)
+
+    def labels(cycles):
+        return label_fields(run_launches(y0, params, T / tu, dt / tu, cycles=cycles),
+                            ball.flat_face_theta_rad, ball.a, tu)["label"]
+
+    t = time.perf_counter()
+    full = labels(0)
+    t_full = time.perf_counter() - t
+    t = time.perf_counter()
+    per = labels(2)
+    t_per = time.perf_counter() - t
+    agree = float(np.mean(full == per))
+    out(f"period mode vs full T = {T} s on a {n} x {n} map (dt = {dt} s): {t_per:.2f} s against "
+        f"{t_full:.2f} s ({t_full / t_per:.1f}x), labels agree on {100 * agree:.2f} %")
+    worst = 0.0
+    for case in ((-5, 0, 23, -3, 190), (20, 0, 10, -2.9, 0), (-5, 0, 4.05, -3, 0),
+                 (-10, 0, 2.3, -2.5, 0)):
+        a = simulate(*case[:4], T, chi0_deg=case[4], n_out=2001)
+        b = periodic_path(*case[:4], T, chi0_deg=case[4], n_out=2001)
+        worst = max(worst, float(np.hypot(a.x - b.x, a.y - b.y).max()))
+    out(f"periodic_path vs simulate to T = {T} s on Figs. 7, 9a, 12a, 12b: largest position "
+        f"difference {worst:.1e} m")
+    launch_cycle(-5, 0, 4.05, -3)
+    t = time.perf_counter()
+    for k in range(20):
+        launch_cycle(-5 + k, 0, 4.05, -3)
+    out(f"quadrature: {1e3 * (time.perf_counter() - t) / 20:.1f} ms per launch")
+    return {"t_full_s": t_full, "t_period_s": t_per, "agreement": agree, "path_dev_m": worst}

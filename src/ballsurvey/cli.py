@@ -15,6 +15,11 @@ def _cmd_bench(args):
     if args.map:
         run_map_bench(n=args.map, T=args.T, dt=args.dt)
         return
+    if args.period:
+        from .bench import run_period_bench
+
+        run_period_bench(n=args.period, T=args.T)
+        return
     if args.headline:
         from .bench import run_headline
 
@@ -201,6 +206,9 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--headline", type=int, metavar="N", nargs="?", const=100,
                    help="instead: an N^3 period-mode map (default 100) with label agreement "
                         "against full integration on 1000 random launches")
+    b.add_argument("--period", type=int, metavar="N",
+                   help="instead: period mode against full integration on an N x N map, the "
+                        "period-map path against simulate, and the quadrature's speed")
     b.add_argument("--T", type=float, default=20.0, help="duration (s) for --map / --headline")
     b.set_defaults(func=_cmd_bench)
 

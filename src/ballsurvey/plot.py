@@ -117,7 +117,7 @@ def path_diagnostics(ds: xr.Dataset, ball: Ball) -> dict:
     """Heading rate of the path, friction ratio and normal force along a `simulate` trajectory."""
     p, tu = ball.nondim_params(), ball.time_unit
     n = ds.sizes["time"]
-    psid, fric, normal = np.empty(n), np.empty(n), np.empty(n)
+    fric, normal = np.empty(n), np.empty(n)
     for k in range(n):
         u = np.array([ds.x.values[k] / ball.a, ds.y.values[k] / ball.a, ds.theta.values[k],
                       ds.chi.values[k], ds.phi.values[k], ds.thetadot.values[k] * tu,

@@ -51,7 +51,9 @@ RESULT_VARIABLES = {
 
 DEFAULT_VARIABLES = tuple(RESULT_VARIABLES)
 
-FILL = {"i1": np.int8(-1), "i2": np.int16(-1), "i4": np.int32(-1), "f8": np.nan}
+#: fill of float variables (cells never written); integer variables need none: the file is only
+#: assembled once every chunk is done
+FLOAT_FILL = np.nan
 
 
 def variable_attrs(name: str) -> dict:

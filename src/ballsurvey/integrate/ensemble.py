@@ -40,10 +40,6 @@ N_FAST = 12
 (S_X, S_Y, S_TH, S_CHI, S_PHI, S_THD, S_CHD, S_PHD,
  S_STH, S_CTH, S_SCH, S_CCH) = range(N_FAST)
 
-#: slot names of the fast state, for trajectories
-FAST_NAMES = ("x", "y", "theta", "chi", "phi", "thetadot", "chidot", "phidot",
-              "sin_theta", "cos_theta", "sin_chi", "cos_chi")
-
 jit = nb.njit(cache=True, nogil=True, error_model="numpy")
 
 

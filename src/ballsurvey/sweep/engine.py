@@ -29,7 +29,7 @@ from ..classify.labels import label_fields
 from ..classify.observer import O_T_STOP
 from ..integrate import ensemble
 from ..integrate.driver import run_launches
-from ..store import CONVENTIONS, FILL, REFERENCES, RESULT_VARIABLES, variable_attrs
+from ..store import CONVENTIONS, FLOAT_FILL, REFERENCES, RESULT_VARIABLES, variable_attrs
 from .spec import AXIS_LONG_NAMES, AXIS_UNITS, BALL_AXES, LAUNCH_AXES, Spec, SpecError, load_spec
 
 PARTS_SUFFIX = ".parts"
@@ -270,7 +270,7 @@ def assemble(spec: Spec, parts: Path, chunks: list, command: str) -> Path:
             dtype = RESULT_VARIABLES[name][0]
             v = nc.createVariable(name, dtype, dims, zlib=spec.compression > 0,
                                   complevel=max(spec.compression, 1), chunksizes=chunksizes,
-                                  fill_value=FILL[dtype] if dtype == "f8" else False)
+                                  fill_value=FLOAT_FILL if dtype == "f8" else False)
             attrs = variable_attrs(name)
             attrs["coordinates"] = coords
             v.setncatts(attrs)
