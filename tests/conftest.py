@@ -1,10 +1,8 @@
-import math
-
 import numpy as np
 import pytest
 
 from ballsurvey.ball import Ball
-from ballsurvey.physics.steady import steady_circle
+from ballsurvey.paper import fig4_launch as paper_fig4_launch
 
 
 @pytest.fixture(scope="session")
@@ -28,11 +26,10 @@ PAPER = {
 
 
 def fig4_launch(ball):
-    """Fig. 4: theta0 = 24 deg, chidot0 = -3.23 rad/s, phidot0 from Eq. (28), start at y = -R."""
-    tu = ball.time_unit
-    sc = steady_circle(math.radians(24.0), -3.23 * tu, *ball.nondim_params())
-    return dict(theta0_deg=24.0, thetadot0=0.0, chidot0=-3.23, phidot0=sc.omega_c / tu,
-                y0=-sc.R * ball.a), sc.R * ball.a
+    """Fig. 4: theta0 = 24 deg, chidot0 = -3.23 rad/s, phidot0 from Eq. (28), start at y = -R.
+    Returns (simulate keywords, R in m)."""
+    extra, R = paper_fig4_launch(ball)
+    return dict(theta0_deg=24.0, thetadot0=0.0, chidot0=-3.23, **extra), R
 
 
 def random_euler_states(n, seed=0):

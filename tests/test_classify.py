@@ -7,7 +7,7 @@ import pytest
 
 from ballsurvey.ball import Ball
 from ballsurvey.classify.labels import CODE, LABELS, Thresholds, label_fields
-from ballsurvey.classify.observer import observe_samples
+from ballsurvey.classify.observer import observe_samples, theta_maxima
 from ballsurvey.simulate import simulate
 
 from conftest import PAPER, fig4_launch
@@ -38,9 +38,7 @@ def test_paper_fig7_theta_range(paths):
 
 
 def _maxima(ds):
-    th = ds.theta.values
-    i = np.flatnonzero((th[1:-1] > th[:-2]) & (th[1:-1] >= th[2:])) + 1
-    return i
+    return theta_maxima(ds.theta.values)
 
 
 def _at_maxima(ds, names):

@@ -43,19 +43,26 @@ class Case:
 
 
 def cases() -> list[Case]:
+    from .paper import FIGURES
+
     paper = Ball.paper()
+
+    def fig(name, **kw):
+        f = FIGURES[name]
+        return Case(name, f["theta0_deg"], f["thetadot0"], f["chidot0"], f["phidot0"], **kw)
+
     return [
-        Case("fig7", -5.0, 0.0, 23.0, -3.0, note="paper: nearly straight"),
-        Case("fig9a", 20.0, 0.0, 10.0, -2.9, note="paper: approximately circular"),
-        Case("fig12a", -5.0, 0.0, 4.05, -3.0, note="paper: square"),
-        Case("fig12b", -10.0, 0.0, 2.3, -2.5, note="paper: triangle"),
+        fig("fig7", note="paper: nearly straight"),
+        fig("fig9a", note="paper: approximately circular"),
+        fig("fig12a", note="paper: square"),
+        fig("fig12b", note="paper: triangle"),
         Case("near_vertical", 89.2, 0.0, 2.0, -3.0, T=5.0, note="theta0 within 1 deg of 90"),
         Case("high_spin", 10.0, 0.0, 200.0, -3.0, T=2.0, note="|chidot0| = 200 rad/s"),
         Case("nearly_symmetric", 20.0, 0.0, 4.0, -3.0,
              ball=replace(paper, c=1e-5, cut_height=0.0), note="c = 1e-5 m (c -> 0)"),
         Case("heavy_bias", 10.0, 0.0, 4.0, -3.0, T=10.0,
              ball=replace(paper, c=0.5 * paper.a, cut_height=0.0), note="c = a/2"),
-        Case("long_run", -5.0, 0.0, 4.05, -3.0, T=200.0, note="Fig. 12a for T = 200 s"),
+        replace(fig("fig12a"), name="long_run", T=200.0, note="Fig. 12a for T = 200 s"),
     ]
 
 

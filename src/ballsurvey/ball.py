@@ -11,9 +11,30 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from numpy.polynomial import Polynomial
 
-#: index of each parameter in the non-dimensional parameter vector the kernels take
-P_C, P_A, P_B = 0, 1, 2
-N_PARAMS = 3
+
+def nondim_params_of(a, c, M, A, B) -> np.ndarray:
+    """(c/a, A/(M a^2), B/(M a^2)) stacked on axis 0; scalars or arrays (one ball per launch)."""
+    a, c, M, A, B = (np.asarray(v, dtype=float) for v in (a, c, M, A, B))
+    return np.stack(np.broadcast_arrays(c / a, A / (M * a * a), B / (M * a * a)))
+
+
+def flat_face_theta_of(a, cut_height):
+    """Tilt (rad) below which the contact point lies on the flat face; -pi/2 without a cut."""
+    a, h = np.asarray(a, dtype=float), np.asarray(cut_height, dtype=float)
+    return np.where(h > 0, -np.arcsin(np.clip((a - h) / a, -1.0, 1.0)), -np.pi / 2)
+
+
+def tilt_error(theta0_deg, flat_face_deg) -> str | None:
+    """Why a launch tilt (deg, scalar or array) is outside the model, or None if all are valid:
+    |theta0| >= 90 deg (the Euler form is singular) or below the flat-face limit (deg)."""
+    th = np.atleast_1d(np.asarray(theta0_deg, dtype=float))
+    if np.any(np.abs(th) >= 90.0):
+        bad = th[np.abs(th) >= 90.0][0]
+        return f"|theta0| must be < 90 deg (the Euler form is singular there); got {float(bad):g}"
+    if np.any(th < flat_face_deg):
+        return (f"theta0 = {float(th.min()):g} deg rests the ball on its flat face (below "
+                f"{float(flat_face_deg):.2f} deg the rolling model does not hold)")
+    return None
 
 
 @dataclass(frozen=True)
@@ -88,18 +109,12 @@ class Ball:
 
     def nondim_params(self) -> np.ndarray:
         """(c/a, A/(M a^2), B/(M a^2)) as float64: the only ball constants the kernels need."""
-        p = np.empty(N_PARAMS)
-        p[P_C] = self.c / self.a
-        p[P_A] = self.A / (self.M * self.a**2)
-        p[P_B] = self.B / (self.M * self.a**2)
-        return p
+        return nondim_params_of(self.a, self.c, self.M, self.A, self.B)
 
     @property
     def flat_face_theta_rad(self) -> float:
         """Tilt (rad) below which the contact point lies on the flat face (-pi/2 if never)."""
-        if self.cut_height <= 0:
-            return -math.pi / 2
-        return -math.asin((self.a - self.cut_height) / self.a)
+        return float(flat_face_theta_of(self.a, self.cut_height))
 
     def as_dict(self) -> dict:
         return asdict(self)

@@ -213,6 +213,7 @@ def run_period_bench(n: int = 40, T: float = 20.0, dt: float = 1e-4, out=print) 
     (largest position difference over T); and the quadrature's time per launch."""
     from .classify.labels import label_fields
     from .integrate.driver import run_launches
+    from .paper import FIGURES
     from .period import periodic_path
     from .quadrature import launch_cycle
     from .simulate import simulate
@@ -239,16 +240,17 @@ def run_period_bench(n: int = 40, T: float = 20.0, dt: float = 1e-4, out=print) 
     out(f"period mode vs full T = {T} s on a {n} x {n} map (dt = {dt} s): {t_per:.2f} s against "
         f"{t_full:.2f} s ({t_full / t_per:.1f}x), labels agree on {100 * agree:.2f} %")
     worst = 0.0
-    for case in ((-5, 0, 23, -3, 190), (20, 0, 10, -2.9, 0), (-5, 0, 4.05, -3, 0),
-                 (-10, 0, 2.3, -2.5, 0)):
-        a = simulate(*case[:4], T, chi0_deg=case[4], n_out=2001)
-        b = periodic_path(*case[:4], T, chi0_deg=case[4], n_out=2001)
+    for name in ("fig7", "fig9a", "fig12a", "fig12b"):
+        kw = {k: v for k, v in FIGURES[name].items() if k != "T_fig"}
+        a = simulate(**kw, T=T, n_out=2001)
+        b = periodic_path(**kw, T=T, n_out=2001)
         worst = max(worst, float(np.hypot(a.x - b.x, a.y - b.y).max()))
     out(f"periodic_path vs simulate to T = {T} s on Figs. 7, 9a, 12a, 12b: largest position "
         f"difference {worst:.1e} m")
-    launch_cycle(-5, 0, 4.05, -3)
+    sq = FIGURES["fig12a"]
+    launch_cycle(sq["theta0_deg"], 0.0, sq["chidot0"], sq["phidot0"])
     t = time.perf_counter()
     for k in range(20):
-        launch_cycle(-5 + k, 0, 4.05, -3)
+        launch_cycle(sq["theta0_deg"] + k, 0.0, sq["chidot0"], sq["phidot0"])
     out(f"quadrature: {1e3 * (time.perf_counter() - t) / 20:.1f} ms per launch")
     return {"t_full_s": t_full, "t_period_s": t_per, "agreement": agree, "path_dev_m": worst}

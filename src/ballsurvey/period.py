@@ -22,6 +22,7 @@ import numpy as np
 import xarray as xr
 
 from .ball import Ball
+from .classify.observer import theta_maxima
 from .simulate import simulate
 
 
@@ -32,7 +33,7 @@ def _interp(t, tt, v):
 def _first_max(ds) -> float:
     """Time of the first theta maximum after the launch, between samples by a parabola."""
     th, t = ds.theta.values, ds.time.values
-    idx = np.flatnonzero((th[1:-1] > th[:-2]) & (th[1:-1] >= th[2:])) + 1
+    idx = theta_maxima(th)
     idx = idx[t[idx] > t[1]]
     if idx.size == 0:
         raise ValueError("no theta maximum within the window")

@@ -14,6 +14,7 @@ from matplotlib.patches import Patch  # noqa: E402
 
 from .ball import Ball  # noqa: E402
 from .classify.labels import LABELS, SHAPES  # noqa: E402
+from .classify.observer import theta_maxima  # noqa: E402
 from .physics import euler  # noqa: E402
 
 #: one colour per label word: shapes in saturated colours, statuses in greys / muted tones
@@ -134,8 +135,7 @@ def path_diagnostics(ds: xr.Dataset, ball: Ball) -> dict:
 
 def corner_indices(ds: xr.Dataset, heading_rate: np.ndarray) -> np.ndarray:
     """Per theta cycle (between successive theta maxima), the sample of peak |heading rate|."""
-    th = ds.theta.values
-    mx = np.flatnonzero((th[1:-1] > th[:-2]) & (th[1:-1] >= th[2:])) + 1
+    mx = theta_maxima(ds.theta.values)
     return np.array([a + int(np.argmax(np.abs(heading_rate[a:b]))) for a, b in zip(mx, mx[1:])
                      if b > a + 1], dtype=int)
 

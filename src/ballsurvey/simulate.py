@@ -10,11 +10,11 @@ import math
 import numpy as np
 import xarray as xr
 
-from .ball import Ball
+from .ball import Ball, tilt_error
 from .classify.labels import CORNER_KINDS, LABELS, Thresholds, label_fields
 from .integrate import ensemble
 from .integrate.adaptive import ADAPTIVE, trajectory_adaptive
-from .integrate.driver import FALLBACK_ATOL, FALLBACK_RTOL, needs_fallback
+from .integrate.driver import FALLBACK_ATOL, FALLBACK_RTOL, METHODS, needs_fallback
 from .integrate.tableaus import FIXED_STEP
 from .integrate.ensemble import (S_CHD, S_CHI, S_CTH, S_PHD, S_PHI, S_STH, S_TH, S_THD, S_X,
                                  S_Y)
@@ -26,12 +26,9 @@ def check_launch(theta0_deg, T, dt, ball: Ball) -> None:
     for name, v in (("theta0_deg", theta0_deg), ("T", T), ("dt", dt)):
         if not math.isfinite(v):
             raise ValueError(f"{name} must be finite, got {v!r}")
-    if abs(theta0_deg) >= 90.0:
-        raise ValueError(f"theta0_deg={theta0_deg!r}: |theta0| must be < 90 deg (Euler form singular)")
-    if math.radians(theta0_deg) < ball.flat_face_theta_rad:
-        raise ValueError(
-            f"theta0_deg={theta0_deg!r}: below {math.degrees(ball.flat_face_theta_rad):.2f} deg the "
-            "ball rests on its flat face, where the rolling model does not hold")
+    problem = tilt_error(theta0_deg, math.degrees(ball.flat_face_theta_rad))
+    if problem:
+        raise ValueError(f"theta0_deg: {problem}")
     if T <= 0:
         raise ValueError(f"T must be > 0 s, got {T!r}")
     if dt <= 0 or dt > T:
@@ -61,8 +58,8 @@ def simulate(theta0_deg: float, thetadot0: float, chidot0: float, phidot0: float
     check_launch(theta0_deg, T, dt, ball)
     if n_out < 2:
         raise ValueError(f"n_out must be >= 2, got {n_out!r}")
-    if method not in FIXED_STEP and method not in ADAPTIVE:
-        raise ValueError(f"unknown method {method!r}; known: {', '.join([*FIXED_STEP, *ADAPTIVE])}")
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; known: {', '.join(METHODS)}")
     tu, a = ball.time_unit, ball.a
     p = ball.nondim_params()
     y_init = ensemble.fast_state(x0 / a, y0 / a, math.radians(theta0_deg), math.radians(chi0_deg),

@@ -185,6 +185,13 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
     obs[O_P_QUAD, i] = quad
 
 
+def theta_maxima(theta) -> np.ndarray:
+    """Indices of the discrete theta maxima of stored samples (the post-hoc twin of the
+    observer's thetadot sign change)."""
+    th = np.asarray(theta)
+    return np.flatnonzero((th[1:-1] > th[:-2]) & (th[1:-1] >= th[2:])) + 1
+
+
 @jit
 def observe_samples(t, x, y, theta, chi, thd, chd, phd, params):
     """Run the observer over stored samples of one trajectory (post-hoc classification).

@@ -8,9 +8,9 @@ ST_FIXED_FRAME (stored as `formulation = fixed_frame`).
 """
 from __future__ import annotations
 
-import numpy as np
-
 import math
+
+import numpy as np
 
 from ..classify.labels import Thresholds
 from ..classify.observer import (O_DE, O_E0, O_STATUS, O_TH_MAX, O_TH_MIN, ST_NONFINITE,

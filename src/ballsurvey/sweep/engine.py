@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
+from ..ball import flat_face_theta_of, nondim_params_of
 from ..classify.labels import label_fields
 from ..classify.observer import O_T_STOP
 from ..integrate import ensemble
@@ -98,15 +99,13 @@ def compute_chunk(spec_text: str, spec_source: str, lo: int, hi: int, parallel: 
     spec = load_spec(spec_source, text=spec_text)
     t = launch_table(spec, lo, hi)
     a, M = t["a"], t["M"]
-    tu = np.sqrt(a / t["g"])
-    params = np.stack([t["c"] / a, t["A"] / (M * a * a), t["B"] / (M * a * a)])
-    flat = np.where(t["cut_height"] > 0, -np.arcsin(np.clip((a - t["cut_height"]) / a, -1, 1)),
-                    -np.pi / 2)
+    tu = spec.ball.time_unit  # a and g are never sweep axes, so the time unit is common
+    params = nondim_params_of(a, t["c"], M, t["A"], t["B"])
+    flat = flat_face_theta_of(a, t["cut_height"])
     y0 = ensemble.fast_state(0.0, 0.0, np.radians(t["theta0_deg"]), np.radians(t["chi0_deg"]), 0.0,
                              t["thetadot0"] * tu, t["chidot0"] * tu, t["phidot0"] * tu)
     n_steps = _steps(spec)
-    tu0 = spec.ball.time_unit  # a and g are never sweep axes, so the time unit is common
-    obs = run_launches(y0, params, spec.T / tu0, spec.T / n_steps / tu0, spec.method,
+    obs = run_launches(y0, params, spec.T / tu, spec.T / n_steps / tu, spec.method,
                        rtol=spec.rtol, atol=spec.atol, block=spec.block,
                        observe_every=spec.observe_every, parallel=parallel,
                        cycles=spec.cycles if spec.mode == "period" else 0)

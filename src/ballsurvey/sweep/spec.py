@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..ball import PRESETS, Ball
+from ..ball import PRESETS, Ball, tilt_error
 from ..classify.labels import Thresholds
 from ..integrate.driver import METHODS
 from ..store import DEFAULT_VARIABLES, RESULT_VARIABLES
@@ -169,14 +169,9 @@ def _ball(src, table) -> Ball:
 
 
 def _check_tilts(src, where, theta0_deg, balls_flat_deg):
-    th = np.asarray(theta0_deg)
-    if np.any(np.abs(th) >= 90.0):
-        _err(src, where, f"|theta0| must be < 90 deg (the Euler form is singular there); "
-                         f"got {th[np.abs(th) >= 90.0][0]!r}")
-    lim = max(balls_flat_deg)
-    if np.any(th < lim):
-        _err(src, where, f"theta0 = {th.min()!r} deg rests the ball on its flat face "
-                         f"(below {lim:.2f} deg the rolling model does not hold)")
+    problem = tilt_error(theta0_deg, max(balls_flat_deg))
+    if problem:
+        _err(src, where, problem)
 
 
 def load_spec(path, *, text: str | None = None) -> Spec:
