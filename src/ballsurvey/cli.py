@@ -291,6 +291,13 @@ def _cmd_gallery(args):
 
 
 def _cmd_accuracy(args):
+    if args.ensemble is not None:
+        from .accuracy import ensemble_work_precision
+
+        if args.ensemble < 1:
+            raise UserError(f"--ensemble needs at least 1 launch, got {args.ensemble}")
+        ensemble_work_precision(n=args.ensemble)
+        return
     from .accuracy import run_accuracy
 
     run_accuracy(args.output, quick=args.quick)
@@ -635,6 +642,10 @@ def build_parser() -> argparse.ArgumentParser:
     ac.add_argument("-o", "--output", default="results/accuracy", metavar="FOLDER",
                     help="folder for .nc and .png")
     ac.add_argument("--quick", action="store_true", help="fewer cases and settings (a minute)")
+    ac.add_argument("--ensemble", type=int, nargs="?", const=256, default=None, metavar="N",
+                    help="only the ensemble table: N launches around the square (256 when not "
+                         "given), final position error against launches/s for DOP853 (SIMD "
+                         "lanes), dopri5 and RK4")
     ac.set_defaults(func=_cmd_accuracy)
     return ap
 

@@ -53,10 +53,15 @@ def _identity(fn) -> str:
 _MODULES: dict = {}
 
 
-def bind(name: str, source: str, observer: Observer):
-    """The module of `source` (a template with `record` and `done` globals) bound to `observer`."""
-    text = (source + "\n\n# observer bound by ballsurvey.integrate.binding:\n"
-            f"#   record = {_identity(observer.record)}\n#   done = {_identity(observer.done)}\n")
+def bind(name: str, source: str, observer: Observer | None):
+    """The module of `source` (a template with `record` and `done` globals) bound to `observer`
+    (None: a kernel with no observer; its module is cached all the same)."""
+    if observer is None:
+        text = source + "\n\n# no observer\n"
+    else:
+        text = (source + "\n\n# observer bound by ballsurvey.integrate.binding:\n"
+                f"#   record = {_identity(observer.record)}\n"
+                f"#   done = {_identity(observer.done)}\n")
     digest = hashlib.sha256(f"{text}\0{SOURCE_DIGEST}".encode()).hexdigest()[:16]
     modname = f"ballsurvey_{name}_{digest}"
     if modname in _MODULES:
@@ -76,9 +81,11 @@ def bind(name: str, source: str, observer: Observer):
         mod = importlib.import_module(modname)
     except OSError:  # read-only home: compile in memory, without the on-disk cache
         mod = type(sys)(modname)
-        mod.record, mod.done = observer.record, observer.done
+        if observer is not None:
+            mod.record, mod.done = observer.record, observer.done
         exec(compile(text.replace("cache=True", "cache=False"), f"<{modname}>", "exec"),
              mod.__dict__)
-    mod.record, mod.done = observer.record, observer.done
+    if observer is not None:
+        mod.record, mod.done = observer.record, observer.done
     _MODULES[modname] = mod
     return mod

@@ -36,8 +36,19 @@ def _cross(a0, a1, a2, b0, b1, b2):
 
 @jit
 def rhs(v, p, out):
-    """dv/dt for the fixed-frame state (module docstring)."""
-    c, A, B = p[0], p[1], p[2]
+    """dv/dt for the fixed-frame state array v, parameters p = (c, A, B), into out."""
+    d = rhs_tuple((v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8], v[9], v[10]),
+                  p[0], p[1], p[2])
+    for q in range(N_FIXED):
+        out[q] = d[q]
+
+
+# inlined by numba itself: LLVM's inliner finds it too big, and a call in a loop over launches stops
+# the loop vectorising (measured: the SIMD-lane kernel's step loop stayed scalar)
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def rhs_tuple(v, c, A, B):
+    """dv/dt for the fixed-frame state (module docstring), on a tuple of plain floats and returned
+    as one: pure arithmetic, so a kernel that loops over launches can vectorise it."""
     ex, ey, ez = v[EX], v[EY], v[EZ]
     wx, wy, wz = v[WX], v[WY], v[WZ]
     sx, sy, sz = c * ex, c * ey, c * ez + 1.0  # s = c e + z_hat
@@ -66,12 +77,12 @@ def rhs(v, p, out):
     c12 = k01 * k02 - k00 * k12
     c22 = k00 * k11 - k01 * k01
     det = k00 * c00 + k01 * c01 + k02 * c02
-    out[WX] = (c00 * r0 + c01 * r1 + c02 * r2) / det
-    out[WY] = (c01 * r0 + c11 * r1 + c12 * r2) / det
-    out[WZ] = (c02 * r0 + c12 * r1 + c22 * r2) / det
-    out[FX], out[FY] = centre_velocity(v, c)
-    out[EX], out[EY], out[EZ] = wex, wey, wez
-    out[BX], out[BY], out[BZ] = _cross(wx, wy, wz, v[BX], v[BY], v[BZ])
+    vx, vy = centre_velocity(v, c)
+    bx, by, bz = _cross(wx, wy, wz, v[BX], v[BY], v[BZ])
+    return (vx, vy, wex, wey, wez, bx, by, bz,
+            (c00 * r0 + c01 * r1 + c02 * r2) / det,
+            (c01 * r0 + c11 * r1 + c12 * r2) / det,
+            (c02 * r0 + c12 * r1 + c22 * r2) / det)
 
 
 def energy(v: np.ndarray, p: np.ndarray) -> float:

@@ -1,0 +1,272 @@
+"""Adaptive Runge-Kutta over an ensemble with every SIMD lane on its own step size.
+
+The fixed-step kernel (`ensemble.py`) shares one step among the launches of a block; the scalar
+adaptive kernel (`adaptive.py`) gives each launch its own step but runs one launch at a time. Here
+the launches of a block advance together through the same stage arithmetic, each lane with its own
+time t and step h: after the stages, each lane accepts or rejects its trial step by a mask (a
+select, no branch), so LLVM vectorises the whole step across lanes. A lane that reaches T, or
+stops on a failure, keeps flowing through the arithmetic with its state held; a block ends when its
+last lane ends.
+
+Formulation: the fixed-frame Newton-Euler state (`physics/fixed.py`), pure arithmetic and regular
+at theta = +-90 deg, so launches passing near the vertical need no chart change and no fallback.
+The fast Euler view of the end state is returned beside it (chi and phi on their principal
+branches).
+
+Method: an embedded pair given as data (`tableaus.LaneTableau`, Dormand-Prince 8(5,3)); the source
+of one step is written out from its coefficients. Error control as in Hairer's DOP853: scaled
+norms n5, n3 of the two estimates over the 11 state variables with scale atol + rtol max(|y|,
+|y_new|), err = |h| n5 / sqrt(11 (n5 + 0.01 n3)), step factor SAFETY err^(-1/8) clipped to
+[MIN_FACTOR, MAX_FACTOR] (at most 1 after a rejection). err^(-1/8) is taken as three square roots,
+which vectorise where a power would be a library call per lane.
+
+Every lane's arithmetic is its own (no fastmath, no cross-lane reduction), so results are
+bit-identical whatever the block size or thread count. All non-dimensional.
+"""
+from __future__ import annotations
+
+from functools import cache
+
+import numpy as np
+
+from .._jit import njit
+from ..physics import fixed
+from ..physics.fast import N_FAST, fast_from_fixed_into, fixed_from_fast_into
+from .binding import bind
+from .outcome import FIXED_FRAME, OK, Result
+from .tableaus import LANE_ADAPTIVE, LaneTableau
+
+SAFETY = 0.9  #: factor on the optimal step
+MIN_FACTOR = 0.2  #: smallest step change in one go
+MAX_FACTOR = 10.0  #: largest step growth in one go (Hairer's DOP853 default)
+STEP_FLOOR = 1e-14  #: steps below STEP_FLOOR max(T, 1) are underflow
+CHECK_EVERY = 16  #: sweeps of the block between checks for failures and finished lanes
+
+NV = fixed.N_FIXED
+
+_TEMPLATE = '''
+@njit(nogil=True, error_model='numpy', cache=True)
+def run_block(v0, params, T, rtol, atol, h0, max_steps, lo, hi, v_end, n_acc_out, n_rej_out,
+              status_out, t_out):
+    m = hi - lo
+{load}
+    pc = params[0, lo:hi].copy()
+    pa = params[1, lo:hi].copy()
+    pb = params[2, lo:hi].copy()
+    tl = np.zeros(m)
+    hl = np.full(m, min(h0, T))
+    live = np.ones(m, dtype=np.bool_)
+    nacc = np.zeros(m, dtype=np.int64)
+    nrej = np.zeros(m, dtype=np.int64)
+    status = np.zeros(m, dtype=np.int8)
+    floor = STEP_FLOOR * max(T, 1.0)
+    sweep = 0
+    while True:
+        sweep += 1
+        # one trial step on every lane: the arithmetic is shared, accept/reject is a select
+        for i in range(m):
+            c = pc[i]
+            A = pa[i]
+            B = pb[i]
+            tt = tl[i]
+            on = live[i]
+            rem = T - tt
+            last = hl[i] >= rem
+            hh = rem if last else hl[i]
+            hh = hh if on else 0.0
+            s0 = ({tuple_r})
+{stages}
+            n5 = 0.0
+            n3 = 0.0
+{norms}
+            den = n5 + 0.01 * n3
+            err = hh * n5 / math.sqrt(den * {nv}.0) if den > 0.0 else 0.0
+            ok = on and err <= 1.0
+            r8th = math.sqrt(math.sqrt(math.sqrt(err)))
+            fac = SAFETY / r8th if err > 0.0 else MAX_FACTOR
+            fac = MIN_FACTOR if not (fac >= MIN_FACTOR) else fac
+            fac = MAX_FACTOR if fac > MAX_FACTOR else fac
+            fac = 1.0 if (not ok) and fac > 1.0 else fac
+{select}
+            tl[i] = (T if last else tt + hh) if ok else tt
+            hl[i] = hh * fac if on else hl[i]
+            nacc[i] += 1 if ok else 0
+            nrej[i] += 1 if on and not ok else 0
+        if sweep % CHECK_EVERY == 0:
+            n_live = 0
+            for i in range(m):
+                if live[i]:
+                    if not math.isfinite({finite}):
+                        status[i] = NONFINITE
+                        live[i] = False
+                    elif tl[i] >= T:
+                        live[i] = False
+                    elif hl[i] < floor:
+                        status[i] = STEP_UNDERFLOW
+                        live[i] = False
+                    elif nacc[i] + nrej[i] >= max_steps:
+                        status[i] = STEP_BUDGET
+                        live[i] = False
+                    else:
+                        n_live += 1
+            if n_live == 0:
+                break
+    for i in range(m):
+{store}
+        n_acc_out[lo + i] = nacc[i]
+        n_rej_out[lo + i] = nrej[i]
+        status_out[lo + i] = status[i]
+        t_out[lo + i] = tl[i]
+
+
+@njit(parallel=True, nogil=True, error_model='numpy', cache=True)
+def run_parallel(v0, params, T, rtol, atol, h0, max_steps, block, v_end, n_acc, n_rej, status,
+                 t_out):
+    n = v0.shape[1]
+    nblocks = (n + block - 1) // block
+    for bi in nb.prange(nblocks):
+        lo = bi * block
+        run_block(v0, params, T, rtol, atol, h0, max_steps, lo, min(n, lo + block), v_end,
+                  n_acc, n_rej, status, t_out)
+
+
+@njit(nogil=True, error_model='numpy', cache=True)
+def run_serial(v0, params, T, rtol, atol, h0, max_steps, block, v_end, n_acc, n_rej, status,
+               t_out):
+    n = v0.shape[1]
+    nblocks = (n + block - 1) // block
+    for bi in range(nblocks):
+        lo = bi * block
+        run_block(v0, params, T, rtol, atol, h0, max_steps, lo, min(n, lo + block), v_end,
+                  n_acc, n_rej, status, t_out)
+'''
+
+_HEADER = """# generated by ballsurvey.integrate.lanes from an embedded pair; do not edit
+import math
+import numba as nb
+import numpy as np
+from ballsurvey._jit import njit
+from ballsurvey.integrate.outcome import NONFINITE, STEP_BUDGET, STEP_UNDERFLOW
+from ballsurvey.physics.fixed import rhs_tuple
+
+SAFETY = {safety!r}
+MIN_FACTOR = {min_factor!r}
+MAX_FACTOR = {max_factor!r}
+STEP_FLOOR = {step_floor!r}
+CHECK_EVERY = {check_every!r}
+"""
+
+
+def _terms(coefs, name, q):
+    return " + ".join(f"{float(w)!r} * {name}{j}[{q}]" for j, w in coefs)
+
+
+def kernel_module_source(tab: LaneTableau) -> str:
+    """The generated kernel module's text for a pair of LANE_ADAPTIVE."""
+    if tab.error_exponent != -1.0 / 8.0:
+        # the factor err^(-1/8) is three square roots; another exponent would need a power call
+        raise ValueError(f"the lane kernel needs an error exponent of -1/8, not {tab.name}'s")
+    ind = " " * 12
+    v = range(NV)
+    lines = [ind + "k0 = rhs_tuple(s0, c, A, B)"]
+    for s in range(1, tab.stages):
+        terms = [(j, tab.a[s, j]) for j in range(s) if tab.a[s, j] != 0.0]
+        comps = ", ".join(f"s0[{q}] + hh * ({_terms(terms, 'k', q)})" for q in v)
+        lines.append(f"{ind}s{s} = ({comps})")
+        lines.append(f"{ind}k{s} = rhs_tuple(s{s}, c, A, B)")
+    b = [(j, w) for j, w in enumerate(tab.b) if w != 0.0]
+    e5 = [(j, w) for j, w in enumerate(tab.e5) if w != 0.0]
+    e3 = [(j, w) for j, w in enumerate(tab.e3) if w != 0.0]
+    norms = []
+    for q in v:
+        norms.append(f"{ind}y{q} = s0[{q}] + hh * ({_terms(b, 'k', q)})")
+        norms.append(f"{ind}w = atol + rtol * max(abs(s0[{q}]), abs(y{q}))")
+        norms.append(f"{ind}e = ({_terms(e5, 'k', q)}) / w")
+        norms.append(f"{ind}n5 += e * e")
+        if e3:
+            norms.append(f"{ind}e = ({_terms(e3, 'k', q)}) / w")
+            norms.append(f"{ind}n3 += e * e")
+    select = "\n".join(f"{ind}r{q}[i] = y{q} if ok else s0[{q}]" for q in v)
+    body = _TEMPLATE.format(
+        load="\n".join(f"    r{q} = v0[{q}, lo:hi].copy()" for q in v),
+        tuple_r=", ".join(f"r{q}[i]" for q in v),
+        stages="\n".join(lines), norms="\n".join(norms), select=select, nv=NV,
+        finite=" + ".join(f"r{q}[i]" for q in v),
+        store="\n".join(f"        v_end[{q}, lo + i] = r{q}[i]" for q in v))
+    return _HEADER.format(safety=SAFETY, min_factor=MIN_FACTOR, max_factor=MAX_FACTOR,
+                          step_floor=STEP_FLOOR, check_every=CHECK_EVERY) + body
+
+
+jit = njit(cache=True, nogil=True, error_model="numpy")  # stamped cache: _jit.py
+
+
+@jit
+def _to_fixed(y, v):
+    for j in range(y.shape[1]):
+        fixed_from_fast_into(y[:, j], v[:, j])
+
+
+@jit
+def _to_fast(v, y):
+    """Fast Euler view of each fixed-frame column (chi, phi on their principal branches); NaN
+    where the axis is vertical and the chart has no view."""
+    out = np.empty(y.shape[0])
+    for j in range(v.shape[1]):
+        if fast_from_fixed_into(v[:, j].copy(), 0.0, 0.0, out):
+            for q in range(y.shape[0]):
+                y[q, j] = out[q]
+
+
+@cache
+def make_kernels(method: str):
+    """(run_parallel, run_serial) of the lane kernel for a pair named in LANE_ADAPTIVE, compiled
+    from a generated module cached like the ensemble kernels (`binding.bind`)."""
+    if method not in LANE_ADAPTIVE:
+        raise ValueError(f"unknown lane method {method!r}; known: {', '.join(LANE_ADAPTIVE)}")
+    mod = bind(f"lanes_{method}", kernel_module_source(LANE_ADAPTIVE[method]), None)
+    return mod.run_parallel, mod.run_serial
+
+
+def integrate_lanes(y0, params, T, rtol=1e-9, atol=1e-12, *, method="dop853", block=64,
+                    h_init=1e-3, max_steps=10_000_000, parallel=True) -> Result:
+    """Integrate n launches to time T (non-dimensional), each lane its own adaptive step.
+
+    y0: (N_FAST, n) fast Euler states; params: (3, n) non-dimensional (c, A, B). Returns a
+    `Result` with y_end the fast Euler view of the final fixed-frame state (chi and phi in
+    (-pi, pi]), n_steps the accepted steps, formulation FIXED_FRAME, and the final fixed-frame
+    state itself in `traj` (shape (N_FIXED, n)); no observer. outcome: OK, NONFINITE,
+    STEP_UNDERFLOW or STEP_BUDGET (max_steps trial steps), with t_stop the time reached."""
+    y0 = np.ascontiguousarray(y0, dtype=np.float64)
+    params = np.ascontiguousarray(params, dtype=np.float64)
+    n = y0.shape[1]
+    if y0.shape[0] != N_FAST or params.shape != (3, n):
+        raise ValueError(f"need y0 ({N_FAST}, n) and params (3, n); got {y0.shape}, {params.shape}")
+    if not (T >= 0.0 and np.isfinite(T)):
+        raise ValueError(f"T must be finite and >= 0, got {T}")
+    if not (rtol >= 0.0 and atol > 0.0):
+        raise ValueError(f"need rtol >= 0 and atol > 0, got rtol={rtol}, atol={atol}")
+    v0 = np.empty((NV, n))
+    _to_fixed(y0, v0)
+    v_end = np.empty_like(v0)
+    n_acc = np.zeros(n, dtype=np.int64)
+    n_rej = np.zeros(n, dtype=np.int64)
+    status = np.zeros(n, dtype=np.int8)
+    t_end = np.zeros(n)
+    par, ser = make_kernels(method)
+    block = max(1, int(block))
+    if parallel:
+        import numba
+
+        # enough blocks for every thread (the block size never changes a result)
+        block = max(1, min(block, -(-n // (2 * numba.get_num_threads()))))
+    if n > 0:
+        (par if parallel else ser)(v0, params, float(T), float(rtol), float(atol), float(h_init),
+                                   int(max_steps), block, v_end, n_acc, n_rej,
+                                   status, t_end)
+    y_end = np.full((N_FAST, n), np.nan)
+    _to_fast(v_end, y_end)
+    return Result(obs=np.empty((0, n)), outcome=status,
+                  t_stop=np.where(status != OK, t_end, np.nan),
+                  formulation=np.full(n, FIXED_FRAME, dtype=np.int8), y_end=y_end,
+                  n_steps=n_acc, t=np.array([float(T)]), traj=v_end)
+
