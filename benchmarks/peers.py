@@ -18,26 +18,15 @@ comparison is between integrators, not formulations:
 from __future__ import annotations
 
 import argparse
-import math
-import time
 
 import numba as nb
 import numpy as np
 
-from ballsurvey.accuracy import ensemble_reference, square_launches
-from ballsurvey.integrate.lanes import _to_fixed, integrate_lanes
+from ballsurvey.accuracy import best_of, ensemble_reference, square_launches
+from ballsurvey.integrate.lanes import fixed_columns, integrate_lanes
 from ballsurvey.physics import euler, fixed
 
 RTOLS = (1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11)
-
-
-def _best(fn, repeats):
-    best, out = math.inf, None
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = fn()
-        best = min(best, time.perf_counter() - t0)
-    return out, best
 
 
 def numbalsoda_runner(form: str):
@@ -81,7 +70,7 @@ def main(argv=None):
     n = y0.shape[1]
     xy_ref, gap = ensemble_reference(y0, p, T)
     v0 = np.empty((11, n))
-    _to_fixed(y0, v0)
+    fixed_columns(y0, v0)
 
     def err_m(xy):
         e = np.hypot(*(xy - xy_ref[:, :xy.shape[1]])) * ball.a
@@ -98,11 +87,11 @@ def main(argv=None):
     integrate_lanes(y0[:, :2], p[:, :2], 0.01, 1e-6, 1e-9)
     for rtol in RTOLS:
         for form, run in runs.items():
-            _, t = _best(lambda rtol=rtol, run=run, form=form: run(
+            _, t = best_of(lambda rtol=rtol, run=run, form=form: run(
                 start[form], p, T, rtol, rtol * 1e-3, out[form], ok), a.repeats)
             rows.append((f"numbalsoda dop853 {form}", rtol, *err_m(out[form][:2]), n / t,
                          bool(ok.all())))
-        res, t = _best(lambda rtol=rtol: integrate_lanes(y0, p, T, rtol, rtol * 1e-3), a.repeats)
+        res, t = best_of(lambda rtol=rtol: integrate_lanes(y0, p, T, rtol, rtol * 1e-3), a.repeats)
         rows.append(("ballsurvey dop853", rtol, *err_m(res.traj[:2]), n / t,
                      bool((res.outcome == 0).all())))
     try:
@@ -118,7 +107,7 @@ def main(argv=None):
                     xy[:, j] = s.y[:2, -1]
                 return xy
 
-            xy, t = _best(sp, 1)
+            xy, t = best_of(sp, 1)
             rows.append(("scipy solve_ivp dop853", rtol, *err_m(xy), m / t, True))
     except ImportError:
         pass

@@ -96,8 +96,8 @@ def test_lanes_conserve_energy(around_square):
     y0, p, T, _ = around_square
     res = integrate_lanes(y0, p, T, 1e-10, 1e-13)
     v0 = np.empty((fixed.N_FIXED, y0.shape[1]))
-    from ballsurvey.integrate.lanes import _to_fixed
-    _to_fixed(y0, v0)
+    from ballsurvey.integrate.lanes import fixed_columns
+    fixed_columns(y0, v0)
     for j in range(y0.shape[1]):
         e0 = fixed.energy(v0[:, j], p[:, j])
         assert abs(fixed.energy(res.traj[:, j], p[:, j]) - e0) < 1e-9 * abs(e0)

@@ -93,7 +93,8 @@ def _adaptive(y0, p, T_nd, rtol, atol, **kw):
                               parallel=False, **kw)
 
 
-def _timed(fn, repeats=1):
+def best_of(fn, repeats=1):
+    """(fn's last result, its best wall time in s over `repeats` calls)."""
     best = math.inf
     out = None
     for _ in range(repeats):
@@ -126,14 +127,14 @@ def work_precision(case: Case, dts=RK4_DTS, rtols=RTOLS) -> list[dict]:
             return ensemble.integrate(y0, p, plan.dt_nd, plan.n_steps, observer=OBSERVER,
                                       n_slots=N_OBS, block=1, observe_every=1, parallel=False)
 
-        res, wall = _timed(run)
+        res, wall = best_of(run)
         rows.append(dict(case=case.name, method="rk4", setting=dt,
                          **_summary(case, res, wall, ref), ref_gap_m=gap))
     for rtol in rtols:
         def run(rtol=rtol):
             return _adaptive(y0, p, case.T / tu, rtol, rtol * 1e-3)
 
-        res, wall = _timed(run)
+        res, wall = best_of(run)
         rows.append(dict(case=case.name, method="dopri5", setting=rtol,
                          **_summary(case, res, wall, ref), ref_gap_m=gap))
     return rows
@@ -245,12 +246,7 @@ def ensemble_work_precision(n: int = 256, repeats: int = 3, emit=print,
     rows = []
 
     def row(method, setting, run):
-        best = math.inf
-        res = None
-        for _ in range(repeats):
-            t0 = time.perf_counter()
-            res = run()
-            best = min(best, time.perf_counter() - t0)
+        res, best = best_of(run, repeats)
         xy = res.traj[:2] if method == "dop853" else res.y_end[:2]
         err = np.hypot(*(xy - xy_ref)) * ball.a
         err = np.where(np.isfinite(err), err, np.inf)

@@ -201,13 +201,14 @@ jit = njit(cache=True, nogil=True, error_model="numpy")  # stamped cache: _jit.p
 
 
 @jit
-def _to_fixed(y, v):
+def fixed_columns(y, v):
+    """Each fast Euler column of y (N_FAST, n) as a fixed-frame state into v (N_FIXED, n)."""
     for j in range(y.shape[1]):
         fixed_from_fast_into(y[:, j], v[:, j])
 
 
 @jit
-def _to_fast(v, y):
+def fast_columns(v, y):
     """Fast Euler view of each fixed-frame column (chi, phi on their principal branches); NaN
     where the axis is vertical and the chart has no view."""
     out = np.empty(y.shape[0])
@@ -246,7 +247,7 @@ def integrate_lanes(y0, params, T, rtol=1e-9, atol=1e-12, *, method="dop853", bl
     if not (rtol >= 0.0 and atol > 0.0):
         raise ValueError(f"need rtol >= 0 and atol > 0, got rtol={rtol}, atol={atol}")
     v0 = np.empty((NV, n))
-    _to_fixed(y0, v0)
+    fixed_columns(y0, v0)
     v_end = np.empty_like(v0)
     n_acc = np.zeros(n, dtype=np.int64)
     n_rej = np.zeros(n, dtype=np.int64)
@@ -264,7 +265,7 @@ def integrate_lanes(y0, params, T, rtol=1e-9, atol=1e-12, *, method="dop853", bl
                                    int(max_steps), block, v_end, n_acc, n_rej,
                                    status, t_end)
     y_end = np.full((N_FAST, n), np.nan)
-    _to_fast(v_end, y_end)
+    fast_columns(v_end, y_end)
     return Result(obs=np.empty((0, n)), outcome=status,
                   t_stop=np.where(status != OK, t_end, np.nan),
                   formulation=np.full(n, FIXED_FRAME, dtype=np.int8), y_end=y_end,
