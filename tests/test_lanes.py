@@ -140,7 +140,7 @@ def test_lanes_failures_stay_in_their_lane(around_square):
 
 def test_lanes_refuse_bad_tolerances(around_square):
     y0, p, T, _ = around_square
-    with pytest.raises(ValueError, match="atol"):
+    with pytest.raises(ValueError, match="finite atol"):
         integrate_lanes(y0, p, T, 1e-8, 0.0)
     with pytest.raises(ValueError, match="T must be"):
         integrate_lanes(y0, p, math.inf, 1e-8, 1e-11)
@@ -168,3 +168,14 @@ def test_cli_ensemble_refuses_no_launches():
     r = subprocess.run([sys.executable, "-m", "ballsurvey", "accuracy", "--ensemble", "0"],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
+
+
+def test_lanes_refuse_unusable_settings(around_square):
+    y0, p, T, _ = around_square
+    for kw in (dict(atol=math.inf), dict(rtol=math.nan), dict(rtol=-1.0), dict(h_init=0.0),
+               dict(h_init=math.nan)):
+        with pytest.raises(ValueError):
+            integrate_lanes(y0, p, T, **{"rtol": 1e-8, "atol": 1e-11, **kw})
+    # a first step below the floor starts above it instead of underflowing
+    tiny = integrate_lanes(y0[:, :2], p[:, :2], T, 1e-8, 1e-11, h_init=1e-300)
+    assert (tiny.outcome == OK).all()

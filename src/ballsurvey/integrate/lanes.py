@@ -25,6 +25,7 @@ bit-identical whatever the block size or thread count. All non-dimensional.
 """
 from __future__ import annotations
 
+import math
 from functools import cache
 
 import numpy as np
@@ -53,13 +54,13 @@ def run_block(v0, params, T, rtol, atol, h0, max_steps, lo, hi, v_end, n_acc_out
     pc = params[0, lo:hi].copy()
     pa = params[1, lo:hi].copy()
     pb = params[2, lo:hi].copy()
+    floor = STEP_FLOOR * max(T, 1.0)
     tl = np.zeros(m)
-    hl = np.full(m, min(h0, T))
+    hl = np.full(m, min(max(h0, 1e3 * floor), T))  # a first step far above the floor
     live = np.ones(m, dtype=np.bool_)
     nacc = np.zeros(m, dtype=np.int64)
     nrej = np.zeros(m, dtype=np.int64)
     status = np.zeros(m, dtype=np.int8)
-    floor = STEP_FLOOR * max(T, 1.0)
     sweep = 0
     while True:
         sweep += 1
@@ -244,8 +245,10 @@ def integrate_lanes(y0, params, T, rtol=1e-9, atol=1e-12, *, method="dop853", bl
         raise ValueError(f"need y0 ({N_FAST}, n) and params (3, n); got {y0.shape}, {params.shape}")
     if not (T >= 0.0 and np.isfinite(T)):
         raise ValueError(f"T must be finite and >= 0, got {T}")
-    if not (rtol >= 0.0 and atol > 0.0):
-        raise ValueError(f"need rtol >= 0 and atol > 0, got rtol={rtol}, atol={atol}")
+    if not (0.0 <= rtol < 1.0 and 0.0 < atol < math.inf):
+        raise ValueError(f"need 0 <= rtol < 1 and finite atol > 0, got rtol={rtol}, atol={atol}")
+    if not (0.0 < h_init < math.inf):
+        raise ValueError(f"h_init must be finite and > 0, got {h_init}")
     v0 = np.empty((NV, n))
     fixed_columns(y0, v0)
     v_end = np.empty_like(v0)
