@@ -151,6 +151,16 @@ def make_kernel(method: str, observer: Observer):
     return cuda.jit(ns["kernel"])
 
 
+def threads_per_block() -> int:
+    """THREADS_PER_BLOCK on a GPU; 1 in numba's simulator, which runs a block's threads as Python
+    threads and swaps the `cuda` global of device functions without a lock: with several threads
+    a call intermittently failed there ("dictionary changed size during iteration", a race fixed
+    upstream in NVIDIA/numba-cuda#690). Each launch is its own thread, so results do not change."""
+    import numba
+
+    return 1 if numba.config.ENABLE_CUDASIM else THREADS_PER_BLOCK
+
+
 def default_batch(cuda, n_slots: int) -> int:
     """Launches per batch: a quarter of the card's free memory (the simulator: 4096)."""
     per_launch = 8 * (2 * N_FAST + 3 + n_slots) + 1
@@ -184,6 +194,7 @@ def integrate(y0, params, dt, n_steps, method="rk4", *, observer: Observer, n_sl
     y_end = np.empty_like(y0)
     outcome = np.empty(n, dtype=np.int8)
     t_stop = np.empty(n)
+    threads = threads_per_block()
     for lo in range(0, n, batch):
         hi = min(n, lo + batch)
         m = hi - lo
@@ -191,8 +202,8 @@ def integrate(y0, params, dt, n_steps, method="rk4", *, observer: Observer, n_sl
         d_end = cuda.device_array((N_FAST, m))
         d_out = cuda.device_array(m, dtype=np.int8)
         d_stop = cuda.device_array(m)
-        blocks = (m + THREADS_PER_BLOCK - 1) // THREADS_PER_BLOCK
-        kern[blocks, THREADS_PER_BLOCK](
+        blocks = (m + threads - 1) // threads
+        kern[blocks, threads](
             cuda.to_device(np.ascontiguousarray(y0[:, lo:hi])),
             cuda.to_device(np.ascontiguousarray(params[:, lo:hi])), float(dt), int(n_steps),
             float(cos_min), n_slots > 0, max(1, int(observe_every)), d_obs, d_end,
