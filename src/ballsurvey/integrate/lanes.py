@@ -33,7 +33,7 @@ import numpy as np
 from .._jit import njit
 from ..physics import fixed
 from ..physics.fast import N_FAST, fast_from_fixed_into, fixed_from_fast_into
-from .binding import bind
+from .binding import Observer, bind
 from .outcome import FIXED_FRAME, OK, Result
 from .tableaus import LANE_ADAPTIVE, LaneTableau
 
@@ -159,14 +159,12 @@ def _terms(coefs, name, q):
     return " + ".join(f"{float(w)!r} * {name}{j}[{q}]" for j, w in coefs)
 
 
-def kernel_module_source(tab: LaneTableau) -> str:
-    """The generated kernel module's text for a pair of LANE_ADAPTIVE."""
-    if tab.error_exponent != -1.0 / 8.0:
-        # the factor err^(-1/8) is three square roots; another exponent would need a power call
-        raise ValueError(f"the lane kernel needs an error exponent of -1/8, not {tab.name}'s")
-    ind = " " * 12
+def _step_parts(tab: LaneTableau, ind: str, k0: str) -> tuple[str, str, str]:
+    """Source of one trial step on lane i (stages from k0, the two error norms, the accepted
+    state y0..y10) written out from the pair's coefficients; k0: the expression of the slope at
+    the step's start."""
     v = range(NV)
-    lines = [ind + "k0 = rhs_tuple(s0, c, A, B)"]
+    lines = [f"{ind}k0 = {k0}"]
     for s in range(1, tab.stages):
         terms = [(j, tab.a[s, j]) for j in range(s) if tab.a[s, j] != 0.0]
         comps = ", ".join(f"s0[{q}] + hh * ({_terms(terms, 'k', q)})" for q in v)
@@ -185,14 +183,266 @@ def kernel_module_source(tab: LaneTableau) -> str:
             norms.append(f"{ind}e = ({_terms(e3, 'k', q)}) / w")
             norms.append(f"{ind}n3 += e * e")
     select = "\n".join(f"{ind}r{q}[i] = y{q} if ok else s0[{q}]" for q in v)
+    return "\n".join(lines), "\n".join(norms), select
+
+
+def _check_pair(tab: LaneTableau) -> None:
+    if tab.error_exponent != -1.0 / 8.0:
+        # the factor err^(-1/8) is three square roots; another exponent would need a power call
+        raise ValueError(f"the lane kernel needs an error exponent of -1/8, not {tab.name}'s")
+
+
+def _header() -> str:
+    return _HEADER.format(safety=SAFETY, min_factor=MIN_FACTOR, max_factor=MAX_FACTOR,
+                          step_floor=STEP_FLOOR, check_every=CHECK_EVERY)
+
+
+def kernel_module_source(tab: LaneTableau) -> str:
+    """The generated kernel module's text for a pair of LANE_ADAPTIVE."""
+    _check_pair(tab)
+    v = range(NV)
+    stages, norms, select = _step_parts(tab, " " * 12, "rhs_tuple(s0, c, A, B)")
     body = _TEMPLATE.format(
         load="\n".join(f"    r{q} = v0[{q}, lo:hi].copy()" for q in v),
         tuple_r=", ".join(f"r{q}[i]" for q in v),
-        stages="\n".join(lines), norms="\n".join(norms), select=select, nv=NV,
+        stages=stages, norms=norms, select=select, nv=NV,
         finite=" + ".join(f"r{q}[i]" for q in v),
         store="\n".join(f"        v_end[{q}, lo + i] = r{q}[i]" for q in v))
-    return _HEADER.format(safety=SAFETY, min_factor=MIN_FACTOR, max_factor=MAX_FACTOR,
-                          step_floor=STEP_FLOOR, check_every=CHECK_EVERY) + body
+    return _header() + body
+
+
+_OBSERVED = """
+@njit(nogil=True, error_model='numpy', cache=True)
+def run_group(u0, params, T, rtol, atol, h0, max_steps, ds, lo, hi, lanes, stop_after, obs, v_end,
+              n_acc_out, status_out, t_out):
+    # launches lo..hi-1 through `lanes` lanes: a lane whose launch ends takes the next at once
+    m = min(lanes, hi - lo)
+{alloc}
+    pc = np.full(m, params[0, lo])
+    pa = np.full(m, params[1, lo])
+    pb = np.full(m, params[2, lo])
+    floor = STEP_FLOOR * max(T, 1.0)
+    tl = np.zeros(m)
+    to = np.zeros(m)
+    hl = np.zeros(m)
+    live = np.zeros(m, dtype=np.bool_)
+    idx = np.full(m, -1, dtype=np.int64)
+    nacc = np.zeros(m, dtype=np.int64)
+    ntry = np.zeros(m, dtype=np.int64)
+    nsamp = np.zeros(m, dtype=np.int64)
+    tseen = np.zeros(m)
+    echi = np.zeros(m)
+    ephi = np.zeros(m)
+    echd = np.zeros(m)
+    ephd = np.zeros(m)
+    n_obs = obs.shape[0]
+    obs_l = np.full((n_obs, m), np.nan)
+    ev = np.empty(N_FAST)
+    ek = np.empty(N_FAST)
+    vv = np.empty(NV)
+    dv = np.empty(NV)
+    pp = np.empty(3)
+    nxt = lo
+    active = 0
+    while True:
+        for i in range(m):  # refill idle lanes from the queue; the launch is its first sample
+            if idx[i] < 0 and nxt < hi:
+                j = nxt
+                nxt += 1
+                for q in range(N_FAST):
+                    ev[q] = u0[q, j]
+                fixed_from_fast_into(ev, vv)
+                for q in range(3):
+                    pp[q] = params[q, j]
+                pc[i] = pp[0]
+                pa[i] = pp[1]
+                pb[i] = pp[2]
+                s0 = ({tuple_vv})
+                k0 = rhs_tuple(s0, pp[0], pp[1], pp[2])
+{load}
+                fast_rhs_into(ev, pp, ek)
+                for q in range(n_obs):
+                    obs_l[q, i] = np.nan
+                record(obs_l, i, True, 0.0, 0.0, ev[0], ev[1], ev[2], ev[8], ev[9], ev[3],
+                       ev[5], ev[6], ev[7], ek[5], ek[6], ek[7], pp[0], pp[1], pp[2],
+                       math.nan, math.nan, math.nan)
+                echi[i] = ev[S_CHI]
+                ephi[i] = ev[S_PHI]
+                echd[i] = ev[S_CHD]
+                ephd[i] = ev[S_PHD]
+                tseen[i] = 0.0
+                nsamp[i] = 1
+                tl[i] = 0.0
+                to[i] = 0.0
+                hl[i] = min(max(h0, 1e3 * floor), T)
+                nacc[i] = 0
+                ntry[i] = 0
+                live[i] = T > 0.0
+                idx[i] = j
+                active += 1
+        if active == 0:
+            break
+        # one trial step on every lane, as run_block's, with the slope at the start carried
+        for i in range(m):
+            c = pc[i]
+            A = pa[i]
+            B = pb[i]
+            tt = tl[i]
+            on = live[i]
+            rem = T - tt
+            last = hl[i] >= rem
+            hh = rem if last else hl[i]
+            hh = hh if on else 0.0
+            s0 = ({tuple_r})
+{stages}
+            n5 = 0.0
+            n3 = 0.0
+{norms}
+            den = n5 + 0.01 * n3
+            err = hh * n5 / math.sqrt(den * {nv}.0) if den > 0.0 else 0.0
+            ok = on and err <= 1.0
+            r8th = math.sqrt(math.sqrt(math.sqrt(err)))
+            fac = SAFETY / r8th if err > 0.0 else MAX_FACTOR
+            fac = MIN_FACTOR if not (fac >= MIN_FACTOR) else fac
+            fac = MAX_FACTOR if fac > MAX_FACTOR else fac
+            fac = 1.0 if (not ok) and fac > 1.0 else fac
+            kn = rhs_tuple(({tuple_y}), c, A, B)
+{keep}
+{select}
+            to[i] = tt
+            tl[i] = (T if last else tt + hh) if ok else tt
+            hl[i] = hh * fac if on else hl[i]
+            nacc[i] += 1 if ok else 0
+            ntry[i] += 1 if on else 0
+        # samples inside each accepted step (cubic Hermite), checks, and finished launches
+        for i in range(m):
+            if idx[i] < 0:
+                continue
+            status = 0
+            finished = not live[i]
+            if live[i]:
+                if not math.isfinite({finite}):
+                    status = NONFINITE
+                elif hl[i] < floor:
+                    status = STEP_UNDERFLOW
+                elif ntry[i] >= max_steps:
+                    status = STEP_BUDGET
+            if status == 0 and tl[i] > to[i]:
+                h = tl[i] - to[i]
+                while True:
+                    ts = nsamp[i] * ds
+                    if ts > tl[i]:
+                        if tl[i] >= T and tseen[i] < T:
+                            ts = T  # the run's end is a sample too
+                        else:
+                            break
+                    u = (ts - to[i]) / h
+                    u2 = u * u
+                    w00 = (2.0 * u - 3.0) * u2 + 1.0
+                    w01 = 1.0 - w00
+                    w10 = ((u - 2.0) * u + 1.0) * u * h
+                    w11 = (u - 1.0) * u2 * h
+                    d01 = 6.0 * u * (1.0 - u) / h
+                    d10 = (3.0 * u - 4.0) * u + 1.0
+                    d11 = (3.0 * u - 2.0) * u
+{interp}
+                    dq = ts - tseen[i]
+                    if (fast_from_fixed_into(vv, echi[i] + dq * echd[i], ephi[i] + dq * ephd[i],
+                                             ev) and ev[S_CTH] > VIEW_MIN_COS):
+                        psid, fric, normal = path_kinematics(vv, dv, pc[i])
+                        # psid, fric and normal come from the fixed frame: the observer does
+                        # not read the Euler accelerations then
+                        record(obs_l, i, False, ts, dq, ev[0], ev[1], ev[2], ev[8], ev[9],
+                               ev[3], ev[5], ev[6], ev[7], 0.0, 0.0, 0.0, pc[i], pa[i], pb[i],
+                               psid, fric, normal)
+                        echi[i] = ev[S_CHI]
+                        ephi[i] = ev[S_PHI]
+                        echd[i] = ev[S_CHD]
+                        ephd[i] = ev[S_PHD]
+                        tseen[i] = ts
+                        if stop_after > 0 and done(obs_l, i, stop_after):
+                            finished = True
+                            break
+                    if ts >= T:
+                        break
+                    nsamp[i] += 1
+            if status != 0 or finished or tl[i] >= T:
+                j = idx[i]
+                for q in range(n_obs):
+                    obs[q, j] = obs_l[q, i]
+{store}
+                n_acc_out[j] = nacc[i]
+                status_out[j] = status
+                t_out[j] = tl[i]
+                live[i] = False
+                idx[i] = -1
+                active -= 1
+
+
+@njit(parallel=True, nogil=True, error_model='numpy', cache=True)
+def run_parallel(u0, params, T, rtol, atol, h0, max_steps, ds, lanes, groups, stop_after, obs,
+                 v_end, n_acc, status, t_out):
+    n = u0.shape[1]
+    size = (n + groups - 1) // groups
+    for g in nb.prange(groups):
+        lo = g * size
+        if lo < n:
+            run_group(u0, params, T, rtol, atol, h0, max_steps, ds, lo, min(n, lo + size), lanes,
+                      stop_after, obs, v_end, n_acc, status, t_out)
+
+
+@njit(nogil=True, error_model='numpy', cache=True)
+def run_serial(u0, params, T, rtol, atol, h0, max_steps, ds, lanes, groups, stop_after, obs,
+               v_end, n_acc, status, t_out):
+    run_group(u0, params, T, rtol, atol, h0, max_steps, ds, 0, u0.shape[1], lanes, stop_after,
+              obs, v_end, n_acc, status, t_out)
+"""
+
+_OBSERVED_HEADER = """
+from ballsurvey.integrate.outcome import NONFINITE, STEP_BUDGET, STEP_UNDERFLOW
+from ballsurvey.physics.fast import (N_FAST, S_CHD, S_CHI, S_CTH, S_PHD, S_PHI, fast_from_fixed_into,
+                                     fast_rhs_into, fixed_from_fast_into)
+from ballsurvey.physics.fixed import path_kinematics
+
+NV = {nv!r}
+VIEW_MIN_COS = {view_min_cos!r}
+
+# the observer, handed in by ballsurvey.integrate.binding.bind before anything is compiled
+record = None
+done = None
+"""
+
+#: cos theta at or below which a sample's Euler view is not shown to the observer (the chart is
+#: degenerate at the vertical; the next sample's interval spans the gap)
+VIEW_MIN_COS = 1e-6
+
+
+def observed_module_source(tab: LaneTableau) -> str:
+    """The generated module of the observed lane kernel (`integrate_observed`) for a pair of
+    LANE_ADAPTIVE."""
+    _check_pair(tab)
+    v = range(NV)
+    ind = " " * 12
+    stages, norms, select = _step_parts(tab, ind, "(" + ", ".join(f"f{q}[i]" for q in v) + ")")
+    keep = "\n".join(f"{ind}o{q}[i] = s0[{q}]\n{ind}g{q}[i] = k0[{q}]" for q in v)
+    select += "\n" + "\n".join(f"{ind}f{q}[i] = kn[{q}] if ok else k0[{q}]" for q in v)
+    ind5 = " " * 20
+    interp = "\n".join(
+        f"{ind5}vv[{q}] = w00 * o{q}[i] + w01 * r{q}[i] + w10 * g{q}[i] + w11 * f{q}[i]\n"
+        f"{ind5}dv[{q}] = d01 * (r{q}[i] - o{q}[i]) + d10 * g{q}[i] + d11 * f{q}[i]"
+        for q in v)
+    body = _OBSERVED.format(
+        alloc="\n".join(f"    r{q} = np.zeros(m)\n    f{q} = np.zeros(m)\n    o{q} = np.zeros(m)"
+                        f"\n    g{q} = np.zeros(m)" for q in v),
+        tuple_vv=", ".join(f"vv[{q}]" for q in v),
+        load="\n".join(f"                r{q}[i] = vv[{q}]\n                f{q}[i] = k0[{q}]"
+                       for q in v),
+        tuple_r=", ".join(f"r{q}[i]" for q in v),
+        tuple_y=", ".join(f"y{q}" for q in v),
+        stages=stages, norms=norms, keep=keep, select=select, nv=NV,
+        finite=" + ".join(f"r{q}[i]" for q in v), interp=interp,
+        store="\n".join(f"                v_end[{q}, j] = r{q}[i]" for q in v))
+    return (_header() + _OBSERVED_HEADER.format(nv=NV, view_min_cos=VIEW_MIN_COS) + body)
 
 
 jit = njit(cache=True, nogil=True, error_model="numpy")  # stamped cache: _jit.py
@@ -269,3 +519,64 @@ def integrate_lanes(y0, params, T, rtol=1e-9, atol=1e-12, *, method="dop853", bl
                   formulation=np.full(n, FIXED_FRAME, dtype=np.int8), y_end=y_end,
                   n_steps=n_acc, t=np.array([float(T)]), traj=v_end)
 
+
+
+@cache
+def make_observed_kernels(method: str, observer: Observer):
+    """(run_parallel, run_serial) of the observed lane kernel for a pair named in LANE_ADAPTIVE,
+    bound to `observer` (`binding.bind`)."""
+    if method not in LANE_ADAPTIVE:
+        raise ValueError(f"unknown lane method {method!r}; known: {', '.join(LANE_ADAPTIVE)}")
+    mod = bind(f"lanes_obs_{method}", observed_module_source(LANE_ADAPTIVE[method]), observer)
+    return mod.run_parallel, mod.run_serial
+
+
+def integrate_observed(y0, params, T, rtol=1e-9, atol=1e-12, *, observer: Observer, n_slots: int,
+                       sample_dt: float, method="dop853", lanes=64, h_init=1e-3,
+                       max_steps=10_000_000, parallel=True, stop_after=0) -> Result:
+    """`integrate_lanes` with a streaming observer: the observer sees each launch at t = 0 and
+    then at every multiple of sample_dt (and at T), the state there taken from the cubic Hermite
+    interpolant of the accepted step that holds it (state and slope at both ends), in the Euler
+    view with the path's heading rate, |F_h|/N and N/(M g) from the fixed frame. Samples where
+    the axis is within VIEW_MIN_COS of vertical are skipped.
+
+    Lanes refill from a queue: a lane whose launch reaches T, fails, or (stop_after > 0, period
+    mode) has `observer.done(obs, i, stop_after)` takes the next launch at once. Each launch's
+    arithmetic is its own, so results are bit-identical for any lane count and thread count, and
+    its steps are exactly `integrate_lanes`'s. Returns a `Result`: obs (n_slots, n), outcome,
+    t_stop (time reached where the run failed), formulation FIXED_FRAME, y_end (Euler view of
+    the last state, principal branches), n_steps accepted, traj the last fixed-frame state."""
+    y0 = np.ascontiguousarray(y0, dtype=np.float64)
+    params = np.ascontiguousarray(params, dtype=np.float64)
+    n = y0.shape[1]
+    if y0.shape[0] != N_FAST or params.shape != (3, n):
+        raise ValueError(f"need y0 ({N_FAST}, n) and params (3, n); got {y0.shape}, {params.shape}")
+    if not (T >= 0.0 and np.isfinite(T)):
+        raise ValueError(f"T must be finite and >= 0, got {T}")
+    if not (0.0 <= rtol < 1.0 and 0.0 < atol < math.inf):
+        raise ValueError(f"need 0 <= rtol < 1 and finite atol > 0, got rtol={rtol}, atol={atol}")
+    if not (0.0 < h_init < math.inf and 0.0 < sample_dt < math.inf):
+        raise ValueError(f"h_init and sample_dt must be finite and > 0, got {h_init}, {sample_dt}")
+    obs = np.full((max(int(n_slots), 1), n), np.nan)
+    v_end = np.full((NV, n), np.nan)
+    n_acc = np.zeros(n, dtype=np.int64)
+    status = np.zeros(n, dtype=np.int8)
+    t_end = np.zeros(n)
+    par, ser = make_observed_kernels(method, observer)
+    lanes = max(1, int(lanes))
+    groups = 1
+    if parallel:
+        import numba
+
+        # several groups of launches per thread, so that none waits long for another
+        groups = max(1, min(-(-n // lanes), 8 * numba.get_num_threads()))
+    if n > 0:
+        (par if parallel else ser)(y0, params, float(T), float(rtol), float(atol), float(h_init),
+                                   int(max_steps), float(sample_dt), lanes, groups,
+                                   int(stop_after), obs, v_end, n_acc, status, t_end)
+    y_end = np.full((N_FAST, n), np.nan)
+    fast_columns(v_end, y_end)
+    return Result(obs=obs[:n_slots], outcome=status,
+                  t_stop=np.where(status != OK, t_end, np.nan),
+                  formulation=np.full(n, FIXED_FRAME, dtype=np.int8), y_end=y_end,
+                  n_steps=n_acc, t=np.array([float(T)]), traj=v_end)
