@@ -15,6 +15,7 @@ from .ball import Ball
 from .classify.observer import N_OBS
 from .compose import OBSERVER
 from .integrate import ensemble, naive
+from .integrate.tableaus import FIXED_STEP
 from .physics.fast import fast_state
 from .units import StepPlan, launch_state
 
@@ -183,6 +184,9 @@ phidot0 = {{start = -8.0, stop = 8.0, num = {n}}}
 [run]
 T = {T}
 dt = {dt}
+method = "{method}"
+rtol = {rtol}
+observe_every = {observe_every}
 mode = "period"
 cycles = 2
 chunk = 8192
@@ -192,11 +196,19 @@ variables = ["label", "n_sides"]
 """
 
 
-def run_headline(n: int = 100, T: float = 20.0, dt: float = 2e-4, sample: int = 1000,
+#: the headline map's method and observer sample spacing (dt * observe_every) by method: RK4's
+#: step, or DOP853's tolerance and first trial step
+HEADLINE_RUN = {"rk4": dict(dt=2e-4, observe_every=4, rtol=1e-9),
+                "dop853": dict(dt=1e-3, observe_every=4, rtol=1e-9)}
+
+
+def run_headline(n: int = 100, T: float = 20.0, method: str = "dop853", dt: float | None = None,
+                 observe_every: int | None = None, rtol: float | None = None, sample: int = 1000,
                  sample_dt: float = 1e-4, out_file=None, out=print, seed: int = 0) -> dict:
     """An n^3 (theta0, chidot0, phidot0) map at T in period mode: wall time and peak memory, then
     label agreement on `sample` random launches against full fixed-step integration to T at
-    sample_dt (the accuracy report shows every label converged from 1e-3 s down)."""
+    sample_dt (the accuracy report shows every label converged from 1e-3 s down). method, dt,
+    observe_every, rtol: the map's run settings (None: HEADLINE_RUN's for the method)."""
     import resource
     import tempfile
     from pathlib import Path
@@ -207,14 +219,18 @@ def run_headline(n: int = 100, T: float = 20.0, dt: float = 2e-4, sample: int = 
     from .sweep import load_spec, run_sweep
     from .sweep.engine import launch_table
 
+    run = dict(HEADLINE_RUN[method])
+    run.update({k: v for k, v in dict(dt=dt, observe_every=observe_every, rtol=rtol).items()
+                if v is not None})
+    dt = run["dt"]
     with tempfile.TemporaryDirectory() as tmp:
         target = Path(out_file) if out_file else Path(tmp) / "headline.nc"
-        text = HEADLINE_SPEC.format(n=n, T=T, dt=dt, out=target)
+        text = HEADLINE_SPEC.format(n=n, T=T, out=target, method=method, **run)
         path = Path(tmp) / "headline.toml"
         path.write_text(text)
         spec = load_spec(path)
-        warm = load_spec(path, text=HEADLINE_SPEC.format(n=2, T=dt * 8, dt=dt,
-                                                         out=Path(tmp) / "w.nc"))
+        warm = load_spec(path, text=HEADLINE_SPEC.format(n=2, T=dt * 8, method=method,
+                                                         out=Path(tmp) / "w.nc", **run))
         run_sweep(warm, command="bench warm-up", progress=False)
         ru0 = resource.getrusage(resource.RUSAGE_SELF)
         t0 = time.perf_counter()
@@ -238,8 +254,11 @@ def run_headline(n: int = 100, T: float = 20.0, dt: float = 2e-4, sample: int = 
         ref = classify(res, ball.flat_face_theta_rad)["label"]
         agree = float(np.mean(ref == labels[pick]))
     est_full = t_full * labels.size / len(pick)
+    how = (f"{method} at dt = {dt} s" if method in FIXED_STEP
+           else f"{method} at rtol {run['rtol']:g}")
     out(f"ballsurvey headline: {n}^3 = {n ** 3} launches, T = {T} s, period mode (2 cycles), "
-        f"dt = {dt} s, {numba.get_num_threads()} numba threads")
+        f"{how}, observer every {dt * run['observe_every']:g} s, "
+        f"{numba.get_num_threads()} numba threads")
     threads = numba.get_num_threads()
     out(f"  wall time {wall:.1f} s ({n ** 3 / wall:.0f} launches/s), CPU use "
         f"{100 * cpu / wall:.0f} % ({cpu / wall / threads:.0%} of {threads} threads), "
@@ -249,7 +268,7 @@ def run_headline(n: int = 100, T: float = 20.0, dt: float = 2e-4, sample: int = 
     out(f"  full integration of the whole map would take about {est_full / 60:.0f} min "
         f"({est_full / wall:.0f}x)")
     return {"wall_s": wall, "cpu_s": cpu, "peak_mb": peak_mb, "agreement": agree,
-            "full_estimate_s": est_full}
+            "full_estimate_s": est_full, "method": method, **run}
 
 
 def run_period_bench(n: int = 40, T: float = 20.0, dt: float = 1e-4, out=print) -> dict:

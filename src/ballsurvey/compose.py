@@ -21,11 +21,11 @@ import numpy as np
 from .ball import flat_face_theta_of, nondim_params_of
 from .classify.labels import CODE, Thresholds, label_fields
 from .classify.observer import N_OBS, O_DE, O_E0, O_TH_MAX, O_TH_MIN, cycles_done, observe
-from .integrate import ensemble
+from .integrate import ensemble, lanes
 from .integrate import outcome as oc
 from .integrate.adaptive import integrate_adaptive, trajectory_adaptive
 from .integrate.binding import Observer
-from .integrate.tableaus import ADAPTIVE, FIXED_STEP
+from .integrate.tableaus import ADAPTIVE, FIXED_STEP, LANE_ADAPTIVE
 from .units import StepPlan, fields_to_si, launch_state
 
 #: seconds spent in this process, by part (integrate, fixed-frame fallback, label): `sweep -v`
@@ -34,7 +34,10 @@ TIMES: Counter = Counter()
 
 #: the classifier's streaming observer, as the integrators take it
 OBSERVER = Observer(record=observe, done=cycles_done)
+#: methods for one trajectory (`run_trajectory`, `simulate`)
 METHODS = tuple(FIXED_STEP) + tuple(ADAPTIVE)
+#: methods for a map (`run_launches`): those, and the adaptive pairs on SIMD lanes
+MAP_METHODS = METHODS + tuple(LANE_ADAPTIVE)
 FALLBACK_RTOL = 1e-10
 FALLBACK_ATOL = 1e-12
 FALLBACK_H_INIT = 1e-3  #: the fixed-frame re-run's first trial step (non-dimensional)
@@ -88,9 +91,12 @@ def run_launches(y0, params, plan: StepPlan, method="rk4", *, rtol=1e-9, atol=1e
                  thresholds: Thresholds = Thresholds(), backend: str = "cpu") -> oc.Result:
     """Integrate fast-state launches for plan.T_nd, observed; returns the integrators' Result.
 
-    method: a fixed-step tableau (plan.n_steps steps of plan.dt_nd) or "dopri5"/"adaptive"
-    (rtol, atol; first trial step plan.h_init_nd). cycles > 0 (period mode): each launch stops
-    once the observer has seen that many complete theta cycles; T is then the longest it may run.
+    method: a fixed-step tableau (plan.n_steps steps of plan.dt_nd), "dopri5"/"adaptive" (rtol,
+    atol; first trial step plan.h_init_nd) or "dop853" (the pair on SIMD lanes, in the fixed
+    frame: `lanes.integrate_observed`, with the observer sampling every observe_every * dt, as
+    it does on the fixed-step kernels, and no fallback, which it never needs). cycles > 0
+    (period mode): each launch stops once the observer has seen that many complete theta
+    cycles; T is then the longest it may run.
     fallback: launches `needs_fallback` names (with `thresholds`) are run again in the fixed
     frame. backend "cuda": the fixed-step kernel on the GPU (`integrate.cuda`); the fixed-frame
     fallback of the few launches that need it runs on the CPU."""
@@ -111,8 +117,13 @@ def run_launches(y0, params, plan: StepPlan, method="rk4", *, rtol=1e-9, atol=1e
         res = integrate_adaptive(y0, params, plan.T_nd, rtol, atol, observer=OBSERVER,
                                  n_slots=N_OBS, h_init=plan.h_init_nd, parallel=parallel,
                                  tableau=ADAPTIVE[method], stop_after=stop)
+    elif method in LANE_ADAPTIVE:
+        res = lanes.integrate_observed(y0, params, plan.T_nd, rtol, atol, observer=OBSERVER,
+                                       n_slots=N_OBS, sample_dt=plan.dt_nd * observe_every,
+                                       method=method, lanes=block, h_init=plan.h_init_nd,
+                                       parallel=parallel, stop_after=stop)
     else:
-        raise ValueError(f"unknown method {method!r}; known: {', '.join(METHODS)}")
+        raise ValueError(f"unknown method {method!r}; known: {', '.join(MAP_METHODS)}")
     t1 = time.perf_counter()
     TIMES["integrate"] += t1 - t0
     if fallback:

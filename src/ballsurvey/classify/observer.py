@@ -82,19 +82,21 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
     psid_in, fric_in, normal_in: the path's heading rate, |F_h|/N and N/(M g) computed without
     the Euler chart (fixed-frame integration near theta = 90 deg); NaN: compute them here."""
     # --- speeds in the frame turning with the heading chi (Eqs. 6-7) and their rates -----------
-    a1 = 1.0 - c * sth
     u, w = heading_velocity(sth, cth, thd, chd, phd, c)
-    ud = (phdd - c * chdd) * cth - (phd - c * chd) * sth * thd
-    wd = -c * cth * thd * thd + a1 * thdd
     v2 = u * u + w * w
     speed = math.sqrt(v2)
-    psid = chd + (u * wd - w * ud) / v2 if v2 > 0.0 else chd  # heading rate of the path
-    ah_par = ud - w * chd
-    ah_perp = wd + u * chd
-    normal = normal_force(sth, cth, thd, thdd, c)  # N / (M g), Eq. (20)
-    fric = math.sqrt(ah_par * ah_par + ah_perp * ah_perp) / normal if normal > 0.0 else math.inf
     if math.isfinite(psid_in):
         psid, fric, normal = psid_in, fric_in, normal_in
+    else:
+        a1 = 1.0 - c * sth
+        ud = (phdd - c * chdd) * cth - (phd - c * chd) * sth * thd
+        wd = -c * cth * thd * thd + a1 * thdd
+        psid = chd + (u * wd - w * ud) / v2 if v2 > 0.0 else chd  # heading rate of the path
+        ah_par = ud - w * chd
+        ah_perp = wd + u * chd
+        normal = normal_force(sth, cth, thd, thdd, c)  # N / (M g), Eq. (20)
+        fric = (math.sqrt(ah_par * ah_par + ah_perp * ah_perp) / normal if normal > 0.0
+                else math.inf)
     # --- invariants -----------------------------------------------------------------------------
     e = energy(sth, cth, thd, chd, phd, c, A, B)
     jel = jellett(sth, cth, thd, chd, phd, c, A, B)

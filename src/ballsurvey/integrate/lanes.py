@@ -70,7 +70,7 @@ def run_block(v0, params, T, rtol, atol, h0, max_steps, lo, hi, v_end, n_acc_out
             A = pa[i]
             B = pb[i]
             tt = tl[i]
-            on = live[i]
+            on = live[i] and tt < T  # a lane at T idles until the next check
             rem = T - tt
             last = hl[i] >= rem
             hh = rem if last else hl[i]
@@ -232,9 +232,7 @@ def run_group(u0, params, T, rtol, atol, h0, max_steps, ds, lo, hi, lanes, stop_
     nsamp = np.zeros(m, dtype=np.int64)
     tseen = np.zeros(m)
     echi = np.zeros(m)
-    ephi = np.zeros(m)
     echd = np.zeros(m)
-    ephd = np.zeros(m)
     n_obs = obs.shape[0]
     obs_l = np.full((n_obs, m), np.nan)
     ev = np.empty(N_FAST)
@@ -267,9 +265,7 @@ def run_group(u0, params, T, rtol, atol, h0, max_steps, ds, lo, hi, lanes, stop_
                        ev[5], ev[6], ev[7], ek[5], ek[6], ek[7], pp[0], pp[1], pp[2],
                        math.nan, math.nan, math.nan)
                 echi[i] = ev[S_CHI]
-                ephi[i] = ev[S_PHI]
                 echd[i] = ev[S_CHD]
-                ephd[i] = ev[S_PHD]
                 tseen[i] = 0.0
                 nsamp[i] = 1
                 tl[i] = 0.0
@@ -347,18 +343,16 @@ def run_group(u0, params, T, rtol, atol, h0, max_steps, ds, lo, hi, lanes, stop_
                     d11 = (3.0 * u - 2.0) * u
 {interp}
                     dq = ts - tseen[i]
-                    if (fast_from_fixed_into(vv, echi[i] + dq * echd[i], ephi[i] + dq * ephd[i],
-                                             ev) and ev[S_CTH] > VIEW_MIN_COS):
+                    ok, th, ch, thd, chd, phd, sth, cth = euler_view_scalars(
+                        vv, echi[i] + dq * echd[i])
+                    if ok and cth > VIEW_MIN_COS:
                         psid, fric, normal = path_kinematics(vv, dv, pc[i])
                         # psid, fric and normal come from the fixed frame: the observer does
                         # not read the Euler accelerations then
-                        record(obs_l, i, False, ts, dq, ev[0], ev[1], ev[2], ev[8], ev[9],
-                               ev[3], ev[5], ev[6], ev[7], 0.0, 0.0, 0.0, pc[i], pa[i], pb[i],
-                               psid, fric, normal)
-                        echi[i] = ev[S_CHI]
-                        ephi[i] = ev[S_PHI]
-                        echd[i] = ev[S_CHD]
-                        ephd[i] = ev[S_PHD]
+                        record(obs_l, i, False, ts, dq, vv[0], vv[1], th, sth, cth, ch, thd, chd,
+                               phd, 0.0, 0.0, 0.0, pc[i], pa[i], pb[i], psid, fric, normal)
+                        echi[i] = ch
+                        echd[i] = chd
                         tseen[i] = ts
                         if stop_after > 0 and done(obs_l, i, stop_after):
                             finished = True
@@ -400,9 +394,8 @@ def run_serial(u0, params, T, rtol, atol, h0, max_steps, ds, lanes, groups, stop
 
 _OBSERVED_HEADER = """
 from ballsurvey.integrate.outcome import NONFINITE, STEP_BUDGET, STEP_UNDERFLOW
-from ballsurvey.physics.fast import (N_FAST, S_CHD, S_CHI, S_CTH, S_PHD, S_PHI, fast_from_fixed_into,
-                                     fast_rhs_into, fixed_from_fast_into)
-from ballsurvey.physics.fixed import path_kinematics
+from ballsurvey.physics.fast import N_FAST, S_CHD, S_CHI, fast_rhs_into, fixed_from_fast_into
+from ballsurvey.physics.fixed import euler_view_scalars, path_kinematics
 
 NV = {nv!r}
 VIEW_MIN_COS = {view_min_cos!r}

@@ -171,6 +171,32 @@ def fixed_to_euler_scalars(v, chi_ref, phi_ref):
     return True, th, ch, ph, thd, chd, phd, sth, cth, sch, cch
 
 
+@jit
+def euler_view_scalars(v, chi_ref):
+    """The Euler view without phi, for an observer: (ok, theta, chi, thetadot, chidot, phidot,
+    sin theta, cos theta), as `fixed_to_euler_scalars` gives them to rounding, with chi on the
+    branch nearest chi_ref. The axis e is normalised first (an interpolated state is off the
+    unit sphere by the interpolant's error), and sin chi, cos chi are e's components over
+    cos theta (no sin, cos or phi's atan2)."""
+    ex, ey, ez = v[EX], v[EY], v[EZ]
+    wx, wy, wz = v[WX], v[WY], v[WZ]
+    inv = 1.0 / math.sqrt(ex * ex + ey * ey + ez * ez)
+    ex, ey, ez = ex * inv, ey * inv, ez * inv
+    sth = -ez
+    cth = math.sqrt(ex * ex + ey * ey)
+    if not cth >= CHART_MIN_COS:
+        nan = math.nan
+        return False, nan, nan, nan, nan, nan, nan, nan
+    th = math.atan2(sth, cth)
+    ch = math.atan2(-ex, ey)
+    ch += 2.0 * math.pi * math.floor((chi_ref - ch) / (2.0 * math.pi) + 0.5)
+    sch, cch = -ex / cth, ey / cth
+    thd = -(wx * cch + wy * sch)
+    chd = (-wx * sth * sch + wy * sth * cch + wz * cth) / cth
+    phd = (wx * ex + wy * ey + wz * ez) + chd * sth
+    return True, th, ch, thd, chd, phd, sth, cth
+
+
 def euler_to_fixed(u: np.ndarray) -> np.ndarray:
     """Euler state (Eq. 43) -> fixed-frame state (`euler_to_fixed_into`)."""
     v = np.empty(N_FIXED)

@@ -27,7 +27,7 @@ from .. import limits
 from ..axes import AXES, BALL_AXES, LAUNCH_AXES
 from ..ball import PRESETS, Ball, tilt_error
 from ..classify.labels import Thresholds
-from ..compose import METHODS
+from ..compose import MAP_METHODS
 from ..integrate.tableaus import FIXED_STEP
 from ..limits import InputError
 from ..store import DEFAULT_VARIABLES, RESULT_VARIABLES
@@ -275,8 +275,8 @@ def load_spec(path, *, text: str | None = None) -> Spec:
     dt = _number(src, "[run] dt", run.get("dt", 1e-4), positive=True)
     _limit(src, limits.steps, T, dt, "[run] T", "[run] dt")
     method = run.get("method", "rk4")
-    if method not in METHODS:
-        _err(src, "[run] method", f"unknown method {method!r}; known: {', '.join(METHODS)}")
+    if method not in MAP_METHODS:
+        _err(src, "[run] method", f"unknown method {method!r}; known: {', '.join(MAP_METHODS)}")
     rtol, atol = _limit(src, limits.tolerances, run.get("rtol", 1e-9), run.get("atol", 1e-12),
                         "[run] rtol", "[run] atol")
     backend = run.get("backend", "cpu")
