@@ -171,6 +171,13 @@ file = "{tmp_path / 'm.nc'}"
     assert ds.attrs["run_method"] == "dop853"
     assert (ds.formulation.values == FIXED_FRAME).all()
     assert ds.label.size == 6
+    # one launch per chunk: the same bits
+    spec.write_text(spec.read_text().replace('mode = "period"', 'mode = "period"\nchunk = 1')
+                    .replace("m.nc", "m1.nc"))
+    run_sweep(load_spec(spec), command="test", progress=False)
+    one = xr.open_dataset(tmp_path / "m1.nc")
+    for name in ("label", "turn_per_cycle_deg", "theta_period_s", "energy_drift"):
+        assert np.array_equal(one[name].values, ds[name].values, equal_nan=True), name
 
 
 def test_headline_bench_runs_either_method():
