@@ -66,28 +66,7 @@ def run_block(v0, params, T, rtol, atol, h0, max_steps, lo, hi, v_end, n_acc_out
         sweep += 1
         # one trial step on every lane: the arithmetic is shared, accept/reject is a select
         for i in range(m):
-            c = pc[i]
-            A = pa[i]
-            B = pb[i]
-            tt = tl[i]
-            on = live[i] and tt < T  # a lane at T idles until the next check
-            rem = T - tt
-            last = hl[i] >= rem
-            hh = rem if last else hl[i]
-            hh = hh if on else 0.0
-            s0 = ({tuple_r})
-{stages}
-            n5 = 0.0
-            n3 = 0.0
-{norms}
-            den = n5 + 0.01 * n3
-            err = hh * n5 / math.sqrt(den * {nv}.0) if den > 0.0 else 0.0
-            ok = on and err <= 1.0
-            r8th = math.sqrt(math.sqrt(math.sqrt(err)))
-            fac = SAFETY / r8th if err > 0.0 else MAX_FACTOR
-            fac = MIN_FACTOR if not (fac >= MIN_FACTOR) else fac
-            fac = MAX_FACTOR if fac > MAX_FACTOR else fac
-            fac = 1.0 if (not ok) and fac > 1.0 else fac
+{trial}
 {select}
             tl[i] = (T if last else tt + hh) if ok else tt
             hl[i] = hh * fac if on else hl[i]
@@ -159,6 +138,32 @@ def _terms(coefs, name, q):
     return " + ".join(f"{float(w)!r} * {name}{j}[{q}]" for j, w in coefs)
 
 
+#: one trial step on lane i, shared by both kernels: the step to take (up to T), the stages,
+#: the two error norms, accept or reject, and the next step's factor
+_TRIAL = """            c = pc[i]
+            A = pa[i]
+            B = pb[i]
+            tt = tl[i]
+            on = live[i] and tt < T  # a lane at T idles until it is retired
+            rem = T - tt
+            last = hl[i] >= rem
+            hh = rem if last else hl[i]
+            hh = hh if on else 0.0
+            s0 = ({tuple_r})
+{stages}
+            n5 = 0.0
+            n3 = 0.0
+{norms}
+            den = n5 + 0.01 * n3
+            err = hh * n5 / math.sqrt(den * {nv}.0) if den > 0.0 else 0.0
+            ok = on and err <= 1.0
+            r8th = math.sqrt(math.sqrt(math.sqrt(err)))
+            fac = SAFETY / r8th if err > 0.0 else MAX_FACTOR
+            fac = MIN_FACTOR if not (fac >= MIN_FACTOR) else fac
+            fac = MAX_FACTOR if fac > MAX_FACTOR else fac
+            fac = 1.0 if (not ok) and fac > 1.0 else fac"""
+
+
 def _step_parts(tab: LaneTableau, ind: str, k0: str) -> tuple[str, str, str]:
     """Source of one trial step on lane i (stages from k0, the two error norms, the accepted
     state y0..y10) written out from the pair's coefficients; k0: the expression of the slope at
@@ -202,10 +207,11 @@ def kernel_module_source(tab: LaneTableau) -> str:
     _check_pair(tab)
     v = range(NV)
     stages, norms, select = _step_parts(tab, " " * 12, "rhs_tuple(s0, c, A, B)")
+    trial = _TRIAL.format(tuple_r=", ".join(f"r{q}[i]" for q in v), stages=stages, norms=norms,
+                          nv=NV)
     body = _TEMPLATE.format(
         load="\n".join(f"    r{q} = v0[{q}, lo:hi].copy()" for q in v),
-        tuple_r=", ".join(f"r{q}[i]" for q in v),
-        stages=stages, norms=norms, select=select, nv=NV,
+        trial=trial, select=select,
         finite=" + ".join(f"r{q}[i]" for q in v),
         store="\n".join(f"        v_end[{q}, lo + i] = r{q}[i]" for q in v))
     return _header() + body
@@ -280,28 +286,7 @@ def run_group(u0, params, T, rtol, atol, h0, max_steps, ds, lo, hi, lanes, stop_
             break
         # one trial step on every lane, as run_block's, with the slope at the start carried
         for i in range(m):
-            c = pc[i]
-            A = pa[i]
-            B = pb[i]
-            tt = tl[i]
-            on = live[i]
-            rem = T - tt
-            last = hl[i] >= rem
-            hh = rem if last else hl[i]
-            hh = hh if on else 0.0
-            s0 = ({tuple_r})
-{stages}
-            n5 = 0.0
-            n3 = 0.0
-{norms}
-            den = n5 + 0.01 * n3
-            err = hh * n5 / math.sqrt(den * {nv}.0) if den > 0.0 else 0.0
-            ok = on and err <= 1.0
-            r8th = math.sqrt(math.sqrt(math.sqrt(err)))
-            fac = SAFETY / r8th if err > 0.0 else MAX_FACTOR
-            fac = MIN_FACTOR if not (fac >= MIN_FACTOR) else fac
-            fac = MAX_FACTOR if fac > MAX_FACTOR else fac
-            fac = 1.0 if (not ok) and fac > 1.0 else fac
+{trial}
             kn = rhs_tuple(({tuple_y}), c, A, B)
 {keep}
 {select}
@@ -430,9 +415,10 @@ def observed_module_source(tab: LaneTableau) -> str:
         tuple_vv=", ".join(f"vv[{q}]" for q in v),
         load="\n".join(f"                r{q}[i] = vv[{q}]\n                f{q}[i] = k0[{q}]"
                        for q in v),
-        tuple_r=", ".join(f"r{q}[i]" for q in v),
+        trial=_TRIAL.format(tuple_r=", ".join(f"r{q}[i]" for q in v), stages=stages,
+                            norms=norms, nv=NV),
         tuple_y=", ".join(f"y{q}" for q in v),
-        stages=stages, norms=norms, keep=keep, select=select, nv=NV,
+        keep=keep, select=select,
         finite=" + ".join(f"r{q}[i]" for q in v), interp=interp,
         store="\n".join(f"                v_end[{q}, j] = r{q}[i]" for q in v))
     return (_header() + _OBSERVED_HEADER.format(nv=NV, view_min_cos=VIEW_MIN_COS) + body)
@@ -469,15 +455,8 @@ def make_kernels(method: str):
     return mod.run_parallel, mod.run_serial
 
 
-def integrate_lanes(y0, params, T, rtol=1e-9, atol=1e-12, *, method="dop853", block=64,
-                    h_init=1e-3, max_steps=10_000_000, parallel=True) -> Result:
-    """Integrate n launches to time T (non-dimensional), each lane its own adaptive step.
-
-    y0: (N_FAST, n) fast Euler states; params: (3, n) non-dimensional (c, A, B). Returns a
-    `Result` with y_end the fast Euler view of the final fixed-frame state (chi and phi in
-    (-pi, pi]), n_steps the accepted steps, formulation FIXED_FRAME, and the final fixed-frame
-    state itself in `traj` (shape (N_FIXED, n)); no observer. outcome: OK, NONFINITE,
-    STEP_UNDERFLOW or STEP_BUDGET (max_steps trial steps), with t_stop the time reached."""
+def _checked(y0, params, T, rtol, atol):
+    """Contiguous float64 launches and parameters, and their count, or one line on bad input."""
     y0 = np.ascontiguousarray(y0, dtype=np.float64)
     params = np.ascontiguousarray(params, dtype=np.float64)
     n = y0.shape[1]
@@ -487,6 +466,19 @@ def integrate_lanes(y0, params, T, rtol=1e-9, atol=1e-12, *, method="dop853", bl
         raise ValueError(f"T must be finite and >= 0, got {T}")
     if not (0.0 <= rtol < 1.0 and 0.0 < atol < math.inf):
         raise ValueError(f"need 0 <= rtol < 1 and finite atol > 0, got rtol={rtol}, atol={atol}")
+    return y0, params, n
+
+
+def integrate_lanes(y0, params, T, rtol=1e-9, atol=1e-12, *, method="dop853", block=64,
+                    h_init=1e-3, max_steps=10_000_000, parallel=True) -> Result:
+    """Integrate n launches to time T (non-dimensional), each lane its own adaptive step.
+
+    y0: (N_FAST, n) fast Euler states; params: (3, n) non-dimensional (c, A, B). Returns a
+    `Result` with y_end the fast Euler view of the final fixed-frame state (chi and phi in
+    (-pi, pi]), n_steps the accepted steps, formulation FIXED_FRAME, and the final fixed-frame
+    state itself in `traj` (shape (N_FIXED, n)); no observer. outcome: OK, NONFINITE,
+    STEP_UNDERFLOW or STEP_BUDGET (max_steps trial steps), with t_stop the time reached."""
+    y0, params, n = _checked(y0, params, T, rtol, atol)
     if not (0.0 < h_init < math.inf):
         raise ValueError(f"h_init must be finite and > 0, got {h_init}")
     v0 = np.empty((NV, n))
@@ -539,15 +531,7 @@ def integrate_observed(y0, params, T, rtol=1e-9, atol=1e-12, *, observer: Observ
     its steps are exactly `integrate_lanes`'s. Returns a `Result`: obs (n_slots, n), outcome,
     t_stop (time reached where the run failed), formulation FIXED_FRAME, y_end (Euler view of
     the last state, principal branches), n_steps accepted, traj the last fixed-frame state."""
-    y0 = np.ascontiguousarray(y0, dtype=np.float64)
-    params = np.ascontiguousarray(params, dtype=np.float64)
-    n = y0.shape[1]
-    if y0.shape[0] != N_FAST or params.shape != (3, n):
-        raise ValueError(f"need y0 ({N_FAST}, n) and params (3, n); got {y0.shape}, {params.shape}")
-    if not (T >= 0.0 and np.isfinite(T)):
-        raise ValueError(f"T must be finite and >= 0, got {T}")
-    if not (0.0 <= rtol < 1.0 and 0.0 < atol < math.inf):
-        raise ValueError(f"need 0 <= rtol < 1 and finite atol > 0, got rtol={rtol}, atol={atol}")
+    y0, params, n = _checked(y0, params, T, rtol, atol)
     if not (0.0 < h_init < math.inf and 0.0 < sample_dt < math.inf):
         raise ValueError(f"h_init and sample_dt must be finite and > 0, got {h_init}, {sample_dt}")
     obs = np.full((max(int(n_slots), 1), n), np.nan)
