@@ -297,6 +297,17 @@ def make_kernels(method: str, observer: Observer):
     return mod.run_parallel, mod.run_serial, mod.run_parallel_refill, mod.run_serial_refill
 
 
+def refill_groups(n: int, lanes: int, parallel: bool) -> int:
+    """How many groups a refill kernel's queue of n launches is cut into: several per numba
+    thread (so that none waits long for another), none smaller than its lane count; 1 serial.
+    The count never changes a result: each launch's arithmetic is its own."""
+    if not parallel:
+        return 1
+    import numba
+
+    return min(max(1, -(-n // int(lanes))), 8 * numba.get_num_threads())
+
+
 def integrate(y0, params, dt, n_steps, method="rk4", *, observer: Observer, n_slots: int,
               block=64, cos_min=1e-3, observe_every=1, n_rec=0, stride=1, parallel=True,
               stop_after=0) -> Result:
@@ -326,9 +337,7 @@ def integrate(y0, params, dt, n_steps, method="rk4", *, observer: Observer, n_sl
     if stop_after > 0 and n_rec == 0 and n_slots > 0 and n > 0:
         # period mode: lanes refill from a queue (`run_refill`); groups of launches spread
         # over the threads, several per thread so that none waits long for another
-        import numba
-
-        groups = min(max(1, -(-n // int(block))), 8 * numba.get_num_threads()) if parallel else 1
+        groups = refill_groups(n, block, parallel)
         (par_refill if parallel else ser_refill)(
             y0, params, float(dt), int(n_steps), int(block), int(groups), float(cos_min),
             max(1, int(observe_every)), obs, y_end, int(stop_after), outcome, t_stop)

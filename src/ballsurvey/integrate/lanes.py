@@ -34,6 +34,7 @@ from .._jit import njit
 from ..physics import fixed
 from ..physics.fast import N_FAST, fast_from_fixed_into, fixed_from_fast_into
 from .binding import Observer, bind
+from .ensemble import refill_groups
 from .outcome import FIXED_FRAME, OK, Result
 from .tableaus import LANE_ADAPTIVE, LaneTableau
 
@@ -328,9 +329,9 @@ def run_group(u0, params, T, rtol, atol, h0, max_steps, ds, lo, hi, lanes, stop_
                     d11 = (3.0 * u - 2.0) * u
 {interp}
                     dq = ts - tseen[i]
-                    ok, th, ch, thd, chd, phd, sth, cth = euler_view_scalars(
+                    seen, th, ch, thd, chd, phd, sth, cth = euler_view_scalars(
                         vv, echi[i] + dq * echd[i])
-                    if ok and cth > VIEW_MIN_COS:
+                    if seen and cth > VIEW_MIN_COS:
                         psid, fric, normal = path_kinematics(vv, dv, pc[i])
                         # psid, fric and normal come from the fixed frame: the observer does
                         # not read the Euler accelerations then
@@ -541,12 +542,7 @@ def integrate_observed(y0, params, T, rtol=1e-9, atol=1e-12, *, observer: Observ
     t_end = np.zeros(n)
     par, ser = make_observed_kernels(method, observer)
     lanes = max(1, int(lanes))
-    groups = 1
-    if parallel:
-        import numba
-
-        # several groups of launches per thread, so that none waits long for another
-        groups = max(1, min(-(-n // lanes), 8 * numba.get_num_threads()))
+    groups = refill_groups(n, lanes, parallel)
     if n > 0:
         (par if parallel else ser)(y0, params, float(T), float(rtol), float(atol), float(h_init),
                                    int(max_steps), float(sample_dt), lanes, groups,

@@ -145,6 +145,23 @@ def euler_to_fixed_into(x, y, sth, cth, sch, cch, ph, thd, chd, phd, out):
 
 
 @jit
+def _nearest_branch(angle, ref):
+    """angle + 2 pi k nearest ref."""
+    return angle + 2.0 * math.pi * math.floor((ref - angle) / (2.0 * math.pi) + 0.5)
+
+
+@jit
+def _euler_rates(ex, ey, ez, wx, wy, wz, sth, cth, sch, cch):
+    """(thetadot, chidot, phidot) from the axis e and the angular velocity w, given theta's and
+    chi's sines and cosines, solving w = -thetadot xi + chidot z_hat + phidot e with
+    xi = (cos chi, sin chi, 0) (`euler_to_fixed_into` builds w this way)."""
+    thd = -(wx * cch + wy * sch)
+    chd = (-wx * sth * sch + wy * sth * cch + wz * cth) / cth
+    phd = (wx * ex + wy * ey + wz * ez) + chd * sth
+    return thd, chd, phd
+
+
+@jit
 def fixed_to_euler_scalars(v, chi_ref, phi_ref):
     """Fixed-frame state -> (ok, theta, chi, phi, thetadot, chidot, phidot, sin theta, cos theta,
     sin chi, cos chi); chi and phi on the branches nearest chi_ref and phi_ref (phi NaN when
@@ -158,16 +175,13 @@ def fixed_to_euler_scalars(v, chi_ref, phi_ref):
         nan = math.nan
         return False, nan, nan, nan, nan, nan, nan, nan, nan, nan, nan
     th = math.atan2(sth, cth)
-    ch = math.atan2(-ex, ey)
-    ch += 2.0 * math.pi * math.floor((chi_ref - ch) / (2.0 * math.pi) + 0.5)
+    ch = _nearest_branch(math.atan2(-ex, ey), chi_ref)
     sch, cch = math.sin(ch), math.cos(ch)
+    thd, chd, phd = _euler_rates(ex, ey, ez, wx, wy, wz, sth, cth, sch, cch)
     # xi = (cos chi, sin chi, 0), zeta = (-sth sch, sth cch, cth); b = cos phi xi - sin phi zeta
-    thd = -(wx * cch + wy * sch)
-    chd = (-wx * sth * sch + wy * sth * cch + wz * cth) / cth
-    phd = (wx * ex + wy * ey + wz * ez) + chd * sth
     bx, by, bz = v[BX], v[BY], v[BZ]
-    ph = math.atan2(-(-bx * sth * sch + by * sth * cch + bz * cth), bx * cch + by * sch)
-    ph += 2.0 * math.pi * math.floor((phi_ref - ph) / (2.0 * math.pi) + 0.5)
+    ph = _nearest_branch(
+        math.atan2(-(-bx * sth * sch + by * sth * cch + bz * cth), bx * cch + by * sch), phi_ref)
     return True, th, ch, ph, thd, chd, phd, sth, cth, sch, cch
 
 
@@ -188,12 +202,8 @@ def euler_view_scalars(v, chi_ref):
         nan = math.nan
         return False, nan, nan, nan, nan, nan, nan, nan
     th = math.atan2(sth, cth)
-    ch = math.atan2(-ex, ey)
-    ch += 2.0 * math.pi * math.floor((chi_ref - ch) / (2.0 * math.pi) + 0.5)
-    sch, cch = -ex / cth, ey / cth
-    thd = -(wx * cch + wy * sch)
-    chd = (-wx * sth * sch + wy * sth * cch + wz * cth) / cth
-    phd = (wx * ex + wy * ey + wz * ez) + chd * sth
+    ch = _nearest_branch(math.atan2(-ex, ey), chi_ref)
+    thd, chd, phd = _euler_rates(ex, ey, ez, wx, wy, wz, sth, cth, -ex / cth, ey / cth)
     return True, th, ch, thd, chd, phd, sth, cth
 
 
