@@ -47,6 +47,29 @@ def test_global_error_order(method):
     assert abs(math.log2(ratio) - order) < 0.4, (errs, ratio)
 
 
+
+@pytest.mark.parametrize("method", ["rk4", "rk38", "ssprk3", "heun"])
+def test_generated_step_is_the_tableaus_stability_polynomial(method):
+    # the step text the kernels compile (dt folded into hoisted constants, equal coefficients
+    # sharing a product), executed on y' = lam y, must give the tableau's R(z) = 1 + z b^T
+    # (I - z A)^-1 1, computed here from the coefficients by linear algebra
+    from ballsurvey.integrate.tableaus import stage_source, step_constants
+
+    tab = FIXED_STEP[method]
+    stages, update = stage_source(tab, 2, "    ")  # two variables: y and 2 y
+    src = ("def step(y, dt, lam):\n" + "".join(f"    {line}\n" for line in step_constants(tab))
+           + "    c = A = B = 0.0\n    s0 = (y, 2.0 * y)\n" + stages + "\n" + update
+           + "\n    return r0, r1\n")
+    env = {"fast_rhs": lambda s, c, A, B: (lam_of[0] * s[0], lam_of[0] * s[1])}
+    lam_of = [0.0]
+    exec(src, env)
+    for lam, dt in ((-1.3, 0.37), (2.1, 0.11), (-40.0, 0.01)):
+        lam_of[0] = lam
+        z = lam * dt
+        s = tab.stages
+        want = 1.0 + z * tab.b @ np.linalg.solve(np.eye(s) - z * tab.a, np.ones(s))
+        assert env["step"](1.0, dt, lam) == pytest.approx((want, 2.0 * want), rel=1e-14, abs=0.0)
+
 def test_rk4_error_falls_by_16_per_halving():
     dts = [5e-4, 2.5e-4]
     ref = naive.rk4_euler(U12A, P, 1.0 / TU / 32000, 32000)  # independent stepper, dt = 3.1e-5 s

@@ -150,8 +150,11 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
             dq += 4.0
         if abs(dq) < 2.0:  # a jump of two quadrants passes through v = 0: a cusp, not a turn
             obs[O_A_QUART, i] += dq
-        # distance from the orbit centre (NaN until it is known: min/max then stay NaN-free)
-        r = math.hypot(x - obs[O_RC_X, i], y - obs[O_RC_Y, i])
+        # distance from the orbit centre (NaN until it is known: min/max then stay NaN-free);
+        # a square root, not hypot: a library call on every sample (measured: 18 % of the
+        # observer's cost), and these distances are far from overflow
+        rx, ry = x - obs[O_RC_X, i], y - obs[O_RC_Y, i]
+        r = math.sqrt(rx * rx + ry * ry)
         if r < obs[O_A_RMIN, i]:
             obs[O_A_RMIN, i] = r
         if r > obs[O_A_RMAX, i]:

@@ -32,7 +32,7 @@ from ..physics.euler import accelerations
 from ..physics.fast import N_FAST, fast_rhs
 from .binding import Observer
 from .outcome import CHART_SINGULAR, EULER_ANGLES, NONFINITE, Result
-from .tableaus import FIXED_STEP, Tableau, stage_source
+from .tableaus import FIXED_STEP, Tableau, stage_source, step_constants
 
 THREADS_PER_BLOCK = 128
 
@@ -89,6 +89,7 @@ def kernel(y0, params, dt, n_steps, cos_min, observer_on, observe_every, obs, y_
     t_seen = 0.0
     status = 0
     t_stop = math.nan
+{consts}
     for n in range(n_steps + 1):
         t = n * dt
         if observer_on and (n % observe_every == 0 or n == n_steps):
@@ -128,6 +129,7 @@ def kernel_source(tab: Tableau) -> str:
         stages=stages,
         update=update,
         store="\n".join(f"    y_end[{q}, i] = r{q}" for q in v),
+        consts="\n".join("    " + line for line in step_constants(tab)),
     )
 
 

@@ -30,7 +30,7 @@ import numpy as np
 from ..physics.fast import N_FAST
 from .binding import Observer, bind
 from .outcome import EULER_ANGLES, Result
-from .tableaus import FIXED_STEP, Tableau, stage_source
+from .tableaus import FIXED_STEP, Tableau, stage_source, step_constants
 
 _TEMPLATE = '''
 def run_block(y0, params, dt, n_steps, lo, hi, cos_min, observer_on, observe_every, obs, traj,
@@ -47,6 +47,7 @@ def run_block(y0, params, dt, n_steps, lo, hi, cos_min, observer_on, observe_eve
     t_stop = np.full(m, np.nan)
     n_rec = traj.shape[0]
     t_seen = 0.0
+{consts}
     for n in range(n_steps + 1):
         t = n * dt
         if n_rec > 0 and n % stride == 0 and n // stride < n_rec:
@@ -117,6 +118,7 @@ def run_refill(y0, params, dt, n_steps, lo, hi, lanes, cos_min, observe_every, o
     obs_l = np.full((n_obs, m), np.nan)
     nxt = lo
     active = 0
+{consts}
     while True:
         for i in range(m):
             while True:  # settle lane i: check, observe, finish and refill as needed
@@ -186,16 +188,19 @@ _STEP = '''        # the step, in place: only the state rows are stored, so LLVM
 def _kernel_source(tab: Tableau) -> str:
     v = range(N_FAST)
     stages, update = stage_source(tab, N_FAST, " " * 12, lane="[i]")
+    consts = "\n".join("    " + line for line in step_constants(tab))
     step = _STEP.format(tuple_r=", ".join(f"r{q}[i]" for q in v), stages=stages, update=update)
     refill = _REFILL.format(
         alloc="\n".join(f"    r{q} = np.zeros(m)" for q in v),
         load_lane="\n".join(f"                    r{q}[i] = y0[{q}, j]" for q in v),
-        store_lane="\n".join(f"                y_end[{q}, j] = r{q}[i]" for q in v), step=step)
+        store_lane="\n".join(f"                y_end[{q}, j] = r{q}[i]" for q in v), step=step,
+        consts=consts)
     return refill + _TEMPLATE.format(
         load="\n".join(f"    r{q} = y0[{q}, lo:hi].copy()" for q in v),
         record="\n".join(f"                traj[rec, {q}, lo + i] = r{q}[i]" for q in v),
         step=step,
         store="\n".join(f"        y_end[{q}, lo + i] = r{q}[i]" for q in v),
+        consts=consts,
     )
 
 

@@ -212,22 +212,53 @@ DOP853 = _dop853()
 LANE_ADAPTIVE = {"dop853": DOP853}
 
 
+def _grouped(coefs) -> list[tuple[float, list[int]]]:
+    """Nonzero coefficients (index j -> value) grouped by value, in order of first appearance:
+    equal weights multiply one sum (RK4's 1/6 (k0 + k3) + 1/3 (k1 + k2))."""
+    groups: dict[float, list[int]] = {}
+    for j, w in coefs:
+        if w != 0.0:
+            groups.setdefault(float(w), []).append(j)
+    return list(groups.items())
+
+
+def _combination(groups, names, q) -> str:
+    parts = []
+    for (_, js), h in zip(groups, names):
+        ks = " + ".join(f"k{j}[{q}]" for j in js)
+        parts.append(f"{h} * ({ks})" if len(js) > 1 else f"{h} * {ks}")
+    return " + ".join(parts)
+
+
+def step_constants(tab: Tableau) -> list[str]:
+    """Assignments of the step's constants (dt times a coefficient) that `stage_source`'s text
+    uses, for a kernel to run once before its step loop: in the loop each stage costs one product
+    per distinct coefficient and variable, not one per term plus one for dt."""
+    lines = []
+    for s in range(1, tab.stages):
+        for g, (w, _) in enumerate(_grouped(enumerate(tab.a[s, :s]))):
+            lines.append(f"dta{s}_{g} = dt * {w!r}")
+    for g, (w, _) in enumerate(_grouped(enumerate(tab.b))):
+        lines.append(f"dtb{g} = dt * {w!r}")
+    return lines
+
+
 def stage_source(tab: Tableau, n_vars: int, indent: str, lane: str = "") -> tuple[str, str]:
     """Python source of one explicit RK step written out from the tableau, for the generated
     kernels (CPU ensemble and CUDA): the stages (`s0` the state tuple, `kJ = fast_rhs(sJ, c, A,
     B)`) and the update of the state variables `r0{lane}` ... (lane: "[i]" for a SIMD row, "" for a
-    scalar). Zero coefficients are left out, so the arithmetic is the tableau's and no more."""
+    scalar). Zero coefficients are left out and equal ones share a product, with dt folded into
+    the constants of `step_constants` (which the kernel assigns before its loop)."""
     v = range(n_vars)
     stages = [indent + "k0 = fast_rhs(s0, c, A, B)"]
     for s in range(1, tab.stages):
-        terms = [(j, float(tab.a[s, j])) for j in range(s) if tab.a[s, j] != 0.0]
-        comps = ", ".join(
-            f"s0[{q}] + dt * (" + " + ".join(f"{coef!r} * k{j}[{q}]" for j, coef in terms) + ")"
-            for q in v)
+        groups = _grouped(enumerate(tab.a[s, :s]))
+        names = [f"dta{s}_{g}" for g in range(len(groups))]
+        comps = ", ".join(f"s0[{q}] + ({_combination(groups, names, q)})" for q in v)
         stages.append(f"{indent}s{s} = ({comps})")
         stages.append(f"{indent}k{s} = fast_rhs(s{s}, c, A, B)")
-    weights = [(j, float(tab.b[j])) for j in range(tab.stages) if tab.b[j] != 0.0]
-    update = "\n".join(
-        f"{indent}r{q}{lane} = s0[{q}] + dt * ("
-        + " + ".join(f"{w!r} * k{j}[{q}]" for j, w in weights) + ")" for q in v)
+    groups = _grouped(enumerate(tab.b))
+    names = [f"dtb{g}" for g in range(len(groups))]
+    update = "\n".join(f"{indent}r{q}{lane} = s0[{q}] + ({_combination(groups, names, q)})"
+                       for q in v)
     return "\n".join(stages), update
