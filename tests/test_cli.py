@@ -32,6 +32,36 @@ def test_bench_prints_rates_and_ratio():
     assert "IC-steps/s" in r.stdout and "vs naive" in r.stdout
 
 
+
+TINY_SPEC = """
+[launch]
+theta0_deg = {{start = -5.0, stop = 5.0, num = 3}}
+thetadot0 = 0.0
+chidot0 = [4.05]
+phidot0 = -3.0
+[run]
+T = 0.05
+dt = 1e-3
+mode = "{mode}"
+[output]
+file = "{out}"
+"""
+
+
+def test_bench_spec_times_the_sweep_against_its_bare_kernel_and_writes_nothing(tmp_path):
+    spec = tmp_path / "tiny.toml"
+    spec.write_text(TINY_SPEC.format(mode="full", out=tmp_path / "tiny.nc"))
+    r = run("bench", "--spec", str(spec))
+    assert r.returncode == 0, r.stderr
+    assert "3 launches" in r.stdout and "50 rk4 steps each" in r.stdout
+    assert "sweep, end to end" in r.stdout and "bare kernel" in r.stdout
+    assert "ratio sweep / bare kernel" in r.stdout
+    assert not (tmp_path / "tiny.nc").exists()  # the map goes to a temporary folder
+    spec.write_text(TINY_SPEC.format(mode="period", out=tmp_path / "tiny.nc"))
+    r = run("bench", "--spec", str(spec))
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
+    assert "mode 'period'" in r.stderr
+
 def test_version():
     from importlib.metadata import version
 

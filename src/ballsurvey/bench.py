@@ -174,6 +174,52 @@ def run_map_bench(n: int = 64, T: float = 20.0, dt: float = 1e-4, naive_sample: 
     return {"wall_s": wall, "naive_estimate_s": naive_est}
 
 
+def run_spec_bench(path, out=print) -> dict:
+    """A spec's sweep end to end in this process (a fresh one: kernels come from the on-disk
+    cache), against the bare kernel on the same launches and steps: no observer, no fallback, no
+    labels, no file. Full-length runs (no period mode) of a fixed-step method."""
+    import tempfile
+    from dataclasses import replace
+    from pathlib import Path
+
+    from .compose import TIMES, launch_arrays
+    from .limits import InputError
+    from .sweep import load_spec, run_sweep
+    from .sweep.plan import launch_table
+
+    spec = load_spec(path)
+    if spec.method not in FIXED_STEP or spec.mode != "full" or spec.backend != "cpu":
+        raise InputError(f"{path}: bench --spec times full-length runs of a fixed-step method "
+                         f"({', '.join(FIXED_STEP)}) on the cpu backend; this spec has method "
+                         f"{spec.method!r}, mode {spec.mode!r}, backend {spec.backend!r}")
+    TIMES.clear()
+    report: dict = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        t = time.perf_counter()
+        run_sweep(replace(spec, output=Path(tmp) / "map.nc"), command="bench", progress=False,
+                  notice=lambda line: None, report=report)
+        wall = time.perf_counter() - t
+    y0, params, tu, _ = launch_arrays(launch_table(spec, 0, spec.n_launches))
+    plan = StepPlan(spec.T, spec.dt, tu)
+
+    def bare():
+        ensemble.integrate(y0, params, plan.dt_nd, plan.n_steps, spec.method,
+                           observer=OBSERVER, n_slots=0, block=spec.block,
+                           observe_every=spec.observe_every)
+
+    t_bare = _best(bare, 1)
+    n = spec.n_launches
+    out(f"ballsurvey spec bench: {path}: {n} launches, T = {spec.T} s, dt = {spec.dt} s "
+        f"({plan.n_steps} {spec.method} steps each), observer every {spec.observe_every} steps, "
+        f"{numba.get_num_threads()} numba threads")
+    out(f"  sweep, end to end (this fresh process): {wall:8.2f} s")
+    parts = ", ".join(f"{k} {v:.2f} s" for k, v in TIMES.items())
+    out(f"    of which {parts}, the rest {wall - sum(TIMES.values()):.2f} s")
+    out(f"  bare kernel, same launches and steps:   {t_bare:8.2f} s")
+    out(f"  ratio sweep / bare kernel: {wall / t_bare:.2f}x")
+    return {"wall_s": wall, "bare_s": t_bare, "ratio": wall / t_bare, "times": dict(TIMES)}
+
+
 HEADLINE_SPEC = """
 title = "headline {n}^3 map"
 [launch]

@@ -49,6 +49,11 @@ def _cmd_bench(args):
     if args.map:
         run_map_bench(n=args.map, T=args.T, dt=args.dt)
         return
+    if args.spec:
+        from .bench import run_spec_bench
+
+        run_spec_bench(args.spec)
+        return
     if args.period:
         from .bench import run_period_bench
 
@@ -501,6 +506,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="steps between classifier samples")
     b.add_argument("--map", type=int, metavar="N",
                    help="instead: time an N x N sweep through the whole engine vs the naive loop")
+    b.add_argument("--spec", metavar="SPEC.toml",
+                   help="instead: a spec's sweep end to end (this fresh process, kernels from the "
+                        "disk cache) against the bare kernel on the same launches and steps (no "
+                        "observer, fallback, labels or file); fixed-step methods, full-length runs")
     b.add_argument("--headline", type=int, metavar="N", nargs="?", const=100,
                    help="instead: an N^3 period-mode map (N = 100 when not given) with label "
                         "agreement against full integration on 1000 random launches")

@@ -170,17 +170,26 @@ def classify(res: oc.Result, flat_face_theta, thresholds: Thresholds = Threshold
     return f
 
 
+def launch_arrays(table: dict):
+    """SI launch table (`sweep.plan.launch_table`: 1-D theta0_deg, thetadot0, chidot0, phidot0,
+    chi0_deg and the ball's a, c, M, A, B, g, cut_height; g and a common) -> (fast states,
+    non-dimensional params, time unit (s), flat-face tilt (rad) per launch)."""
+    a = table["a"]
+    tu = math.sqrt(float(np.ravel(a)[0]) / float(np.ravel(table["g"])[0]))
+    params = nondim_params_of(a, table["c"], table["M"], table["A"], table["B"])
+    flat = flat_face_theta_of(a, table["cut_height"])
+    y0 = launch_state(table["theta0_deg"], table["thetadot0"], table["chidot0"],
+                      table["phidot0"], tu, chi0_deg=table["chi0_deg"])
+    return y0, params, tu, flat
+
+
 def survey(table: dict, *, T: float, dt: float, method: str = "rk4", rtol=1e-9, atol=1e-12,
            block=64, observe_every=4, cycles=0, thresholds: Thresholds = Thresholds(),
            parallel=True, backend: str = "cpu") -> dict:
     """SI launches -> SI fields. table: 1-D arrays theta0_deg, thetadot0, chidot0, phidot0,
     chi0_deg and the ball's a, c, M, A, B, g, cut_height per launch (g and a common)."""
     a, M = table["a"], table["M"]
-    tu = math.sqrt(float(np.ravel(a)[0]) / float(np.ravel(table["g"])[0]))
-    params = nondim_params_of(a, table["c"], M, table["A"], table["B"])
-    flat = flat_face_theta_of(a, table["cut_height"])
-    y0 = launch_state(table["theta0_deg"], table["thetadot0"], table["chidot0"],
-                      table["phidot0"], tu, chi0_deg=table["chi0_deg"])
+    y0, params, tu, flat = launch_arrays(table)
     res = run_launches(y0, params, StepPlan(T, dt, tu), method, rtol=rtol, atol=atol,
                        block=block, observe_every=observe_every, parallel=parallel,
                        cycles=cycles, thresholds=thresholds, backend=backend)
