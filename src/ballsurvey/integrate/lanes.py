@@ -56,7 +56,14 @@ def run_block(v0, params, T, rtol, atol, h0, max_steps, lo, hi, v_end, n_acc_out
     pa = params[1, lo:hi].copy()
     pb = params[2, lo:hi].copy()
     floor = STEP_FLOOR * max(T, 1.0)
+    # the trial loop touches only the state rows, the parameters, tl and hl: with one array
+    # more LLVM keeps it scalar (measured: a live-flag row or the step counters in it cost the
+    # vectorisation). So a retired lane's time is +inf (its time reached is kept in t_fail), an
+    # accepted trial leaves a positive next step and a rejected one a negative, and the counters
+    # are kept from that after the loop
     tl = np.zeros(m)
+    t_prev = np.zeros(m)
+    t_fail = np.zeros(m)
     hl = np.full(m, min(max(h0, 1e3 * floor), T))  # a first step far above the floor
     live = np.ones(m, dtype=np.bool_)
     nacc = np.zeros(m, dtype=np.int64)
@@ -65,38 +72,46 @@ def run_block(v0, params, T, rtol, atol, h0, max_steps, lo, hi, v_end, n_acc_out
     sweep = 0
     while True:
         sweep += 1
+        for i in range(m):
+            t_prev[i] = tl[i]
         # one trial step on every lane: the arithmetic is shared, accept/reject is a select
         for i in range(m):
 {trial}
 {select}
             tl[i] = (T if last else tt + hh) if ok else tt
-            hl[i] = hh * fac if on else hl[i]
-            nacc[i] += 1 if ok else 0
-            ntry[i] += 1 if on else 0
+            hl[i] = (hh * fac if ok else -(hh * fac)) if on else hl[i]
+        for i in range(m):
+            if t_prev[i] < T:  # the lane was on
+                ntry[i] += 1
+                if hl[i] > 0.0:
+                    nacc[i] += 1
+                else:
+                    hl[i] = -hl[i]
         if sweep % CHECK_EVERY == 0:
             n_live = 0
             for i in range(m):
                 if live[i]:
                     if not math.isfinite({finite}):
                         status[i] = NONFINITE
-                        live[i] = False
                     elif tl[i] >= T:
                         live[i] = False
                     elif hl[i] < floor:
                         status[i] = STEP_UNDERFLOW
-                        live[i] = False
                     elif ntry[i] >= max_steps:
                         status[i] = STEP_BUDGET
-                        live[i] = False
                     else:
                         n_live += 1
+                    if status[i] != 0:
+                        live[i] = False
+                        t_fail[i] = tl[i]
+                        tl[i] = math.inf  # off in every later trial
             if n_live == 0:
                 break
     for i in range(m):
 {store}
         n_acc_out[lo + i] = nacc[i]
         status_out[lo + i] = status[i]
-        t_out[lo + i] = tl[i]
+        t_out[lo + i] = t_fail[i] if status[i] != 0 else tl[i]
 
 
 @njit(parallel=True, nogil=True, error_model='numpy', cache=True)
@@ -145,7 +160,7 @@ _TRIAL = """            c = pc[i]
             A = pa[i]
             B = pb[i]
             tt = tl[i]
-            on = live[i] and tt < T  # a lane at T idles until it is retired
+            on = {on}  # a lane at T idles until it is retired
             rem = T - tt
             last = hl[i] >= rem
             hh = rem if last else hl[i]
@@ -209,7 +224,7 @@ def kernel_module_source(tab: LaneTableau) -> str:
     v = range(NV)
     stages, norms, select = _step_parts(tab, " " * 12, "rhs_tuple(s0, c, A, B)")
     trial = _TRIAL.format(tuple_r=", ".join(f"r{q}[i]" for q in v), stages=stages, norms=norms,
-                          nv=NV)
+                          nv=NV, on="tt < T")
     body = _TEMPLATE.format(
         load="\n".join(f"    r{q} = v0[{q}, lo:hi].copy()" for q in v),
         trial=trial, select=select,
@@ -417,7 +432,7 @@ def observed_module_source(tab: LaneTableau) -> str:
         load="\n".join(f"                r{q}[i] = vv[{q}]\n                f{q}[i] = k0[{q}]"
                        for q in v),
         trial=_TRIAL.format(tuple_r=", ".join(f"r{q}[i]" for q in v), stages=stages,
-                            norms=norms, nv=NV),
+                            norms=norms, nv=NV, on="live[i] and tt < T"),
         tuple_y=", ".join(f"y{q}" for q in v),
         keep=keep, select=select,
         finite=" + ".join(f"r{q}[i]" for q in v), interp=interp,
