@@ -179,3 +179,29 @@ def test_lanes_refuse_unusable_settings(around_square):
     # a first step below the floor starts above it instead of underflowing
     tiny = integrate_lanes(y0[:, :2], p[:, :2], T, 1e-8, 1e-11, h_init=1e-300)
     assert (tiny.outcome == OK).all()
+
+
+@pytest.mark.skipif(__import__("platform").machine() not in ("x86_64", "AMD64"),
+                    reason="checks x86 packed instructions")
+def test_the_lane_trial_loop_is_vectorised():
+    # a guard on a measured fact (README "Adaptive ensembles"): with one more array in the trial
+    # loop (a live-flag row, the step counters) LLVM keeps it scalar, 2.7x slower; compiled here
+    # without the disk cache, whose code numba will not show
+    import re
+    import types
+
+    src = kernel_module_source(DOP853).replace("cache=True", "cache=False")
+    mod = types.ModuleType("lanes_vectorised_probe")
+    exec(compile(src, "<lanes probe>", "exec"), mod.__dict__)
+    n = 8
+    v0 = np.zeros((fixed.N_FIXED, n))
+    v0[fixed.EZ] = 1.0  # upright axis, spinning: a valid state
+    v0[fixed.BX] = 1.0
+    v0[fixed.WZ] = 2.0
+    p = np.repeat(Ball.paper().nondim_params()[:, None], n, 1)
+    out, na = np.empty_like(v0), np.zeros(n, np.int64)
+    mod.run_block(v0, p, 0.01, 1e-9, 1e-12, 1e-3, 1000, 0, n, out, na, np.zeros(n, np.int8),
+                  np.zeros(n))
+    asm = "\n".join(mod.run_block.inspect_asm().values())
+    packed = len(re.findall(r"\bv?mulpd\b", asm))
+    assert packed > 500, f"{packed} packed multiplies: the trial loop is not vectorised"
