@@ -244,8 +244,11 @@ def run_group(u0, params, T, rtol, atol, h0, max_steps, ds, lo, hi, lanes, stop_
     pa = np.full(m, params[1, lo])
     pb = np.full(m, params[2, lo])
     floor = STEP_FLOOR * max(T, 1.0)
-    tl = np.zeros(m)
-    to = np.zeros(m)
+    # as in run_block, the trial loop touches only the state rows, the parameters, tl and hl (so
+    # LLVM vectorises it): a lane with no launch has time +inf, a rejected trial leaves a negative
+    # next step, and the step's two ends and slopes are kept around it
+    tl = np.full(m, np.inf)
+    t_prev = np.zeros(m)
     hl = np.zeros(m)
     live = np.zeros(m, dtype=np.bool_)
     idx = np.full(m, -1, dtype=np.int64)
@@ -291,7 +294,6 @@ def run_group(u0, params, T, rtol, atol, h0, max_steps, ds, lo, hi, lanes, stop_
                 tseen[i] = 0.0
                 nsamp[i] = 1
                 tl[i] = 0.0
-                to[i] = 0.0
                 hl[i] = min(max(h0, 1e3 * floor), T)
                 nacc[i] = 0
                 ntry[i] = 0
@@ -300,17 +302,24 @@ def run_group(u0, params, T, rtol, atol, h0, max_steps, ds, lo, hi, lanes, stop_
                 active += 1
         if active == 0:
             break
-        # one trial step on every lane, as run_block's, with the slope at the start carried
+        for i in range(m):  # the step's start: time, state and slope
+            t_prev[i] = tl[i]
+{keep}
+        # one trial step on every lane, run_block's
         for i in range(m):
 {trial}
-            kn = rhs_tuple(({tuple_y}), c, A, B)
-{keep}
 {select}
-            to[i] = tt
             tl[i] = (T if last else tt + hh) if ok else tt
-            hl[i] = hh * fac if on else hl[i]
-            nacc[i] += 1 if ok else 0
-            ntry[i] += 1 if on else 0
+            hl[i] = (hh * fac if ok else -(hh * fac)) if on else hl[i]
+        for i in range(m):
+            if t_prev[i] < T:  # the lane was on
+                ntry[i] += 1
+                if hl[i] > 0.0:
+                    nacc[i] += 1
+                    kn = rhs_tuple(({tuple_r}), pc[i], pa[i], pb[i])  # the slope at the end
+{carry}
+                else:
+                    hl[i] = -hl[i]
         # samples inside each accepted step (cubic Hermite), checks, and finished launches
         for i in range(m):
             if idx[i] < 0:
@@ -324,8 +333,8 @@ def run_group(u0, params, T, rtol, atol, h0, max_steps, ds, lo, hi, lanes, stop_
                     status = STEP_UNDERFLOW
                 elif ntry[i] >= max_steps:
                     status = STEP_BUDGET
-            if status == 0 and tl[i] > to[i]:
-                h = tl[i] - to[i]
+            if status == 0 and tl[i] > t_prev[i]:
+                h = tl[i] - t_prev[i]
                 while True:
                     ts = nsamp[i] * ds
                     if ts > tl[i]:
@@ -333,7 +342,7 @@ def run_group(u0, params, T, rtol, atol, h0, max_steps, ds, lo, hi, lanes, stop_
                             ts = T  # the run's end is a sample too
                         else:
                             break
-                    u = (ts - to[i]) / h
+                    u = (ts - t_prev[i]) / h
                     u2 = u * u
                     w00 = (2.0 * u - 3.0) * u2 + 1.0
                     w01 = 1.0 - w00
@@ -370,6 +379,7 @@ def run_group(u0, params, T, rtol, atol, h0, max_steps, ds, lo, hi, lanes, stop_
                 status_out[j] = status
                 t_out[j] = tl[i]
                 live[i] = False
+                tl[i] = math.inf  # off until the lane takes another launch
                 idx[i] = -1
                 active -= 1
 
@@ -417,9 +427,9 @@ def observed_module_source(tab: LaneTableau) -> str:
     _check_pair(tab)
     v = range(NV)
     ind = " " * 12
-    stages, norms, select = _step_parts(tab, ind, "(" + ", ".join(f"f{q}[i]" for q in v) + ")")
-    keep = "\n".join(f"{ind}o{q}[i] = s0[{q}]\n{ind}g{q}[i] = k0[{q}]" for q in v)
-    select += "\n" + "\n".join(f"{ind}f{q}[i] = kn[{q}] if ok else k0[{q}]" for q in v)
+    stages, norms, select = _step_parts(tab, ind, "rhs_tuple(s0, c, A, B)")
+    keep = "\n".join(f"{ind}o{q}[i] = r{q}[i]\n{ind}g{q}[i] = f{q}[i]" for q in v)
+    carry = "\n".join(f"{' ' * 20}f{q}[i] = kn[{q}]" for q in v)
     ind5 = " " * 20
     interp = "\n".join(
         f"{ind5}vv[{q}] = w00 * o{q}[i] + w01 * r{q}[i] + w10 * g{q}[i] + w11 * f{q}[i]\n"
@@ -432,9 +442,9 @@ def observed_module_source(tab: LaneTableau) -> str:
         load="\n".join(f"                r{q}[i] = vv[{q}]\n                f{q}[i] = k0[{q}]"
                        for q in v),
         trial=_TRIAL.format(tuple_r=", ".join(f"r{q}[i]" for q in v), stages=stages,
-                            norms=norms, nv=NV, on="live[i] and tt < T"),
-        tuple_y=", ".join(f"y{q}" for q in v),
-        keep=keep, select=select,
+                            norms=norms, nv=NV, on="tt < T"),
+        tuple_r=", ".join(f"r{q}[i]" for q in v),
+        keep=keep, select=select, carry=carry,
         finite=" + ".join(f"r{q}[i]" for q in v), interp=interp,
         store="\n".join(f"                v_end[{q}, j] = r{q}[i]" for q in v))
     return (_header() + _OBSERVED_HEADER.format(nv=NV, view_min_cos=VIEW_MIN_COS) + body)
