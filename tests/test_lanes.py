@@ -181,27 +181,52 @@ def test_lanes_refuse_unusable_settings(around_square):
     assert (tiny.outcome == OK).all()
 
 
-@pytest.mark.skipif(__import__("platform").machine() not in ("x86_64", "AMD64"),
-                    reason="checks x86 packed instructions")
-def test_the_lane_trial_loop_is_vectorised():
-    # a guard on a measured fact (README "Adaptive ensembles"): with one more array in the trial
-    # loop (a live-flag row, the step counters) LLVM keeps it scalar, 2.7x slower; compiled here
-    # without the disk cache, whose code numba will not show
+
+def _packed_multiplies(source: str, bind_observer: bool, call) -> int:
+    """Packed double multiplies in the machine code of a generated lane module's block function,
+    compiled here without the disk cache (numba shows no code it loaded from it)."""
     import re
     import types
 
-    src = kernel_module_source(DOP853).replace("cache=True", "cache=False")
     mod = types.ModuleType("lanes_vectorised_probe")
-    exec(compile(src, "<lanes probe>", "exec"), mod.__dict__)
+    exec(compile(source.replace("cache=True", "cache=False"), "<lanes probe>", "exec"),
+         mod.__dict__)
+    if bind_observer:
+        mod.record, mod.done = OBSERVER.record, OBSERVER.done
+    fn = call(mod)
+    return len(re.findall(r"\bv?mulpd\b", "\n".join(fn.inspect_asm().values())))
+
+
+@pytest.mark.skipif(__import__("platform").machine() not in ("x86_64", "AMD64"),
+                    reason="checks x86 packed instructions")
+@pytest.mark.parametrize("kernel", ["bare", "observed"])
+def test_the_lane_trial_loop_is_vectorised(kernel):
+    # a guard on a measured fact (README "Adaptive ensembles"): with one more array in the trial
+    # loop (a live-flag row, the step counters, the kept slopes) LLVM keeps it scalar, 2.7x slower
+    from ballsurvey.integrate.lanes import observed_module_source
+
     n = 8
-    v0 = np.zeros((fixed.N_FIXED, n))
-    v0[fixed.EZ] = 1.0  # upright axis, spinning: a valid state
-    v0[fixed.BX] = 1.0
-    v0[fixed.WZ] = 2.0
     p = np.repeat(Ball.paper().nondim_params()[:, None], n, 1)
-    out, na = np.empty_like(v0), np.zeros(n, np.int64)
-    mod.run_block(v0, p, 0.01, 1e-9, 1e-12, 1e-3, 1000, 0, n, out, na, np.zeros(n, np.int8),
-                  np.zeros(n))
-    asm = "\n".join(mod.run_block.inspect_asm().values())
-    packed = len(re.findall(r"\bv?mulpd\b", asm))
+    if kernel == "bare":
+        v0 = np.zeros((fixed.N_FIXED, n))
+        v0[fixed.EZ] = 1.0  # upright axis, spinning: a valid state
+        v0[fixed.BX] = 1.0
+        v0[fixed.WZ] = 2.0
+
+        def call(mod):
+            mod.run_block(v0, p, 0.01, 1e-9, 1e-12, 1e-3, 1000, 0, n, np.empty_like(v0),
+                          np.zeros(n, np.int64), np.zeros(n, np.int8), np.zeros(n))
+            return mod.run_block
+
+        packed = _packed_multiplies(kernel_module_source(DOP853), False, call)
+    else:
+        y0 = launch_state(np.full(n, -5.0), 0.0, 4.05, -3.0, Ball.paper().time_unit)
+
+        def call(mod):
+            mod.run_serial(y0, p, 0.05, 1e-9, 1e-12, 1e-3, 1000, 0.01, n, 1, 0,
+                           np.full((N_OBS, n), np.nan), np.empty((fixed.N_FIXED, n)),
+                           np.zeros(n, np.int64), np.zeros(n, np.int8), np.zeros(n))
+            return mod.run_group
+
+        packed = _packed_multiplies(observed_module_source(DOP853), True, call)
     assert packed > 500, f"{packed} packed multiplies: the trial loop is not vectorised"
