@@ -75,18 +75,7 @@ def run_block(v0, params, T, rtol, atol, h0, max_steps, lo, hi, v_end, n_acc_out
         for i in range(m):
             t_prev[i] = tl[i]
         # one trial step on every lane: the arithmetic is shared, accept/reject is a select
-        for i in range(m):
-{trial}
-{select}
-            tl[i] = (T if last else tt + hh) if ok else tt
-            hl[i] = (hh * fac if ok else -(hh * fac)) if on else hl[i]
-        for i in range(m):
-            if t_prev[i] < T:  # the lane was on
-                ntry[i] += 1
-                if hl[i] > 0.0:
-                    nacc[i] += 1
-                else:
-                    hl[i] = -hl[i]
+{trial_loop}
         if sweep % CHECK_EVERY == 0:
             n_live = 0
             for i in range(m):
@@ -180,6 +169,23 @@ _TRIAL = """            c = pc[i]
             fac = 1.0 if (not ok) and fac > 1.0 else fac"""
 
 
+#: the trial loop of both kernels, and after it the step counters, kept from the sign of the next
+#: step (negative: rejected), with what a kernel does on an accepted step (`on_accept`)
+_TRIAL_LOOP = """        for i in range(m):
+{trial}
+{select}
+            tl[i] = (T if last else tt + hh) if ok else tt
+            hl[i] = (hh * fac if ok else -(hh * fac)) if on else hl[i]
+        for i in range(m):
+            if t_prev[i] < T:  # the lane was on
+                ntry[i] += 1
+                if hl[i] > 0.0:
+                    nacc[i] += 1
+{on_accept}
+                else:
+                    hl[i] = -hl[i]"""
+
+
 def _step_parts(tab: LaneTableau, ind: str, k0: str) -> tuple[str, str, str]:
     """Source of one trial step on lane i (stages from k0, the two error norms, the accepted
     state y0..y10) written out from the pair's coefficients; k0: the expression of the slope at
@@ -227,7 +233,7 @@ def kernel_module_source(tab: LaneTableau) -> str:
                           nv=NV, on="tt < T")
     body = _TEMPLATE.format(
         load="\n".join(f"    r{q} = v0[{q}, lo:hi].copy()" for q in v),
-        trial=trial, select=select,
+        trial_loop=_TRIAL_LOOP.format(trial=trial, select=select, on_accept=""),
         finite=" + ".join(f"r{q}[i]" for q in v),
         store="\n".join(f"        v_end[{q}, lo + i] = r{q}[i]" for q in v))
     return _header() + body
@@ -306,20 +312,7 @@ def run_group(u0, params, T, rtol, atol, h0, max_steps, ds, lo, hi, lanes, stop_
             t_prev[i] = tl[i]
 {keep}
         # one trial step on every lane, run_block's
-        for i in range(m):
-{trial}
-{select}
-            tl[i] = (T if last else tt + hh) if ok else tt
-            hl[i] = (hh * fac if ok else -(hh * fac)) if on else hl[i]
-        for i in range(m):
-            if t_prev[i] < T:  # the lane was on
-                ntry[i] += 1
-                if hl[i] > 0.0:
-                    nacc[i] += 1
-                    kn = rhs_tuple(({tuple_r}), pc[i], pa[i], pb[i])  # the slope at the end
-{carry}
-                else:
-                    hl[i] = -hl[i]
+{trial_loop}
         # samples inside each accepted step (cubic Hermite), checks, and finished launches
         for i in range(m):
             if idx[i] < 0:
@@ -429,7 +422,10 @@ def observed_module_source(tab: LaneTableau) -> str:
     ind = " " * 12
     stages, norms, select = _step_parts(tab, ind, "rhs_tuple(s0, c, A, B)")
     keep = "\n".join(f"{ind}o{q}[i] = r{q}[i]\n{ind}g{q}[i] = f{q}[i]" for q in v)
-    carry = "\n".join(f"{' ' * 20}f{q}[i] = kn[{q}]" for q in v)
+    # the slope at the end of an accepted step, the next step's start slope
+    on_accept = (" " * 20 + "kn = rhs_tuple((" + ", ".join(f"r{q}[i]" for q in v)
+                 + "), pc[i], pa[i], pb[i])\n"
+                 + "\n".join(f"{' ' * 20}f{q}[i] = kn[{q}]" for q in v))
     ind5 = " " * 20
     interp = "\n".join(
         f"{ind5}vv[{q}] = w00 * o{q}[i] + w01 * r{q}[i] + w10 * g{q}[i] + w11 * f{q}[i]\n"
@@ -441,10 +437,11 @@ def observed_module_source(tab: LaneTableau) -> str:
         tuple_vv=", ".join(f"vv[{q}]" for q in v),
         load="\n".join(f"                r{q}[i] = vv[{q}]\n                f{q}[i] = k0[{q}]"
                        for q in v),
-        trial=_TRIAL.format(tuple_r=", ".join(f"r{q}[i]" for q in v), stages=stages,
-                            norms=norms, nv=NV, on="tt < T"),
-        tuple_r=", ".join(f"r{q}[i]" for q in v),
-        keep=keep, select=select, carry=carry,
+        trial_loop=_TRIAL_LOOP.format(
+            trial=_TRIAL.format(tuple_r=", ".join(f"r{q}[i]" for q in v), stages=stages,
+                                norms=norms, nv=NV, on="tt < T"),
+            select=select, on_accept=on_accept),
+        keep=keep,
         finite=" + ".join(f"r{q}[i]" for q in v), interp=interp,
         store="\n".join(f"                v_end[{q}, j] = r{q}[i]" for q in v))
     return (_header() + _OBSERVED_HEADER.format(nv=NV, view_min_cos=VIEW_MIN_COS) + body)
