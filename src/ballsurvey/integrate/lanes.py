@@ -149,7 +149,7 @@ _TRIAL = """            c = pc[i]
             A = pa[i]
             B = pb[i]
             tt = tl[i]
-            on = {on}  # a lane at T idles until it is retired
+            on = tt < T  # a lane at T idles until it is retired; a lane off has tt = +inf
             rem = T - tt
             last = hl[i] >= rem
             hh = rem if last else hl[i]
@@ -230,7 +230,7 @@ def kernel_module_source(tab: LaneTableau) -> str:
     v = range(NV)
     stages, norms, select = _step_parts(tab, " " * 12, "rhs_tuple(s0, c, A, B)")
     trial = _TRIAL.format(tuple_r=", ".join(f"r{q}[i]" for q in v), stages=stages, norms=norms,
-                          nv=NV, on="tt < T")
+                          nv=NV)
     body = _TEMPLATE.format(
         load="\n".join(f"    r{q} = v0[{q}, lo:hi].copy()" for q in v),
         trial_loop=_TRIAL_LOOP.format(trial=trial, select=select, on_accept=""),
@@ -256,7 +256,7 @@ def run_group(u0, params, T, rtol, atol, h0, max_steps, ds, lo, hi, lanes, stop_
     tl = np.full(m, np.inf)
     t_prev = np.zeros(m)
     hl = np.zeros(m)
-    live = np.zeros(m, dtype=np.bool_)
+    runs = T > 0.0  # a lane with a launch steps (T = 0: the launch is its only sample)
     idx = np.full(m, -1, dtype=np.int64)
     nacc = np.zeros(m, dtype=np.int64)
     ntry = np.zeros(m, dtype=np.int64)
@@ -303,12 +303,11 @@ def run_group(u0, params, T, rtol, atol, h0, max_steps, ds, lo, hi, lanes, stop_
                 hl[i] = min(max(h0, 1e3 * floor), T)
                 nacc[i] = 0
                 ntry[i] = 0
-                live[i] = T > 0.0
                 idx[i] = j
                 active += 1
         if active == 0:
             break
-        for i in range(m):  # the step's start: time, state and slope
+        for i in range(m):  # the step's start: time and state
             t_prev[i] = tl[i]
 {keep}
         # one trial step on every lane, run_block's
@@ -318,8 +317,8 @@ def run_group(u0, params, T, rtol, atol, h0, max_steps, ds, lo, hi, lanes, stop_
             if idx[i] < 0:
                 continue
             status = 0
-            finished = not live[i]
-            if live[i]:
+            finished = not runs
+            if runs:
                 if not math.isfinite({finite}):
                     status = NONFINITE
                 elif hl[i] < floor:
@@ -371,7 +370,6 @@ def run_group(u0, params, T, rtol, atol, h0, max_steps, ds, lo, hi, lanes, stop_
                 n_acc_out[j] = nacc[i]
                 status_out[j] = status
                 t_out[j] = tl[i]
-                live[i] = False
                 tl[i] = math.inf  # off until the lane takes another launch
                 idx[i] = -1
                 active -= 1
@@ -421,11 +419,12 @@ def observed_module_source(tab: LaneTableau) -> str:
     v = range(NV)
     ind = " " * 12
     stages, norms, select = _step_parts(tab, ind, "rhs_tuple(s0, c, A, B)")
-    keep = "\n".join(f"{ind}o{q}[i] = r{q}[i]\n{ind}g{q}[i] = f{q}[i]" for q in v)
-    # the slope at the end of an accepted step, the next step's start slope
+    keep = "\n".join(f"{ind}o{q}[i] = r{q}[i]" for q in v)
+    # an accepted step's slopes: at its start (the last one's end) and at its end
     on_accept = (" " * 20 + "kn = rhs_tuple((" + ", ".join(f"r{q}[i]" for q in v)
                  + "), pc[i], pa[i], pb[i])\n"
-                 + "\n".join(f"{' ' * 20}f{q}[i] = kn[{q}]" for q in v))
+                 + "\n".join(f"{' ' * 20}g{q}[i] = f{q}[i]\n{' ' * 20}f{q}[i] = kn[{q}]"
+                              for q in v))
     ind5 = " " * 20
     interp = "\n".join(
         f"{ind5}vv[{q}] = w00 * o{q}[i] + w01 * r{q}[i] + w10 * g{q}[i] + w11 * f{q}[i]\n"
@@ -439,7 +438,7 @@ def observed_module_source(tab: LaneTableau) -> str:
                        for q in v),
         trial_loop=_TRIAL_LOOP.format(
             trial=_TRIAL.format(tuple_r=", ".join(f"r{q}[i]" for q in v), stages=stages,
-                                norms=norms, nv=NV, on="tt < T"),
+                                norms=norms, nv=NV),
             select=select, on_accept=on_accept),
         keep=keep,
         finite=" + ".join(f"r{q}[i]" for q in v), interp=interp,
