@@ -57,7 +57,7 @@ def test_generated_step_is_the_tableaus_stability_polynomial(method):
 
     tab = FIXED_STEP[method]
     stages, update = stage_source(tab, 2, "    ")  # two variables: y and 2 y
-    src = ("def step(y, dt, lam):\n" + "".join(f"    {line}\n" for line in step_constants(tab))
+    src = ("def step(y, dt, lam):\n" + step_constants(tab, "    ") + "\n"
            + "    c = A = B = 0.0\n    s0 = (y, 2.0 * y)\n" + stages + "\n" + update
            + "\n    return r0, r1\n")
     env = {"fast_rhs": lambda s, c, A, B: (lam_of[0] * s[0], lam_of[0] * s[1])}

@@ -193,11 +193,10 @@ def run_spec_bench(path, out=print) -> dict:
                          f"({', '.join(FIXED_STEP)}) on the cpu backend; this spec has method "
                          f"{spec.method!r}, mode {spec.mode!r}, backend {spec.backend!r}")
     TIMES.clear()
-    report: dict = {}
     with tempfile.TemporaryDirectory() as tmp:
         t = time.perf_counter()
         run_sweep(replace(spec, output=Path(tmp) / "map.nc"), command="bench", progress=False,
-                  notice=lambda line: None, report=report)
+                  notice=lambda line: None)
         wall = time.perf_counter() - t
     y0, params, tu, _ = launch_arrays(launch_table(spec, 0, spec.n_launches))
     plan = StepPlan(spec.T, spec.dt, tu)

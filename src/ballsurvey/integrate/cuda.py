@@ -129,7 +129,7 @@ def kernel_source(tab: Tableau) -> str:
         stages=stages,
         update=update,
         store="\n".join(f"    y_end[{q}, i] = r{q}" for q in v),
-        consts="\n".join("    " + line for line in step_constants(tab)),
+        consts=step_constants(tab, " " * 4),
     )
 
 

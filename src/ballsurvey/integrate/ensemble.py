@@ -188,7 +188,7 @@ _STEP = '''        # the step, in place: only the state rows are stored, so LLVM
 def _kernel_source(tab: Tableau) -> str:
     v = range(N_FAST)
     stages, update = stage_source(tab, N_FAST, " " * 12, lane="[i]")
-    consts = "\n".join("    " + line for line in step_constants(tab))
+    consts = step_constants(tab, " " * 4)
     step = _STEP.format(tuple_r=", ".join(f"r{q}[i]" for q in v), stages=stages, update=update)
     refill = _REFILL.format(
         alloc="\n".join(f"    r{q} = np.zeros(m)" for q in v),

@@ -230,17 +230,18 @@ def _combination(groups, names, q) -> str:
     return " + ".join(parts)
 
 
-def step_constants(tab: Tableau) -> list[str]:
-    """Assignments of the step's constants (dt times a coefficient) that `stage_source`'s text
-    uses, for a kernel to run once before its step loop: in the loop each stage costs one product
-    per distinct coefficient and variable, not one per term plus one for dt."""
+def step_constants(tab: Tableau, indent: str) -> str:
+    """Python source assigning the step's constants (dt times a coefficient) that
+    `stage_source`'s text uses, for a kernel to run once before its step loop: in the loop each
+    stage costs one product per distinct coefficient and variable, not one per term plus one for
+    dt."""
     lines = []
     for s in range(1, tab.stages):
         for g, (w, _) in enumerate(_grouped(enumerate(tab.a[s, :s]))):
             lines.append(f"dta{s}_{g} = dt * {w!r}")
     for g, (w, _) in enumerate(_grouped(enumerate(tab.b))):
         lines.append(f"dtb{g} = dt * {w!r}")
-    return lines
+    return "\n".join(indent + line for line in lines)
 
 
 def stage_source(tab: Tableau, n_vars: int, indent: str, lane: str = "") -> tuple[str, str]:
