@@ -157,16 +157,53 @@ def test_kill_9_loses_only_chunks_in_flight(tmp_path):
         assert np.array_equal(ref[v].values, got[v].values, equal_nan=True), v
 
 
+#: one chunk of 130 launches: on two workers, it goes as two tasks (`task_ranges`)
+ONE_CHUNK = SMALL.replace("num = 4", "num = 13").replace("[-3.0, -2.5]", "[-3.0, -2.5, -2.0]") \
+    .replace("[2.3, 4.05, 8.0]", "[1.0, 2.3, 3.0, 4.05, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0]") \
+    .replace("chunk = 5", "chunk = 4096").replace("T = 3.0", "T = 0.3")
+
+
 def test_dask_local_cluster_matches_embedded(tmp_path):
     distributed = pytest.importorskip("distributed")
-    ref = xr.open_dataset(run_sweep(small_spec(tmp_path, "emb.nc"), command="test"))
+    from ballsurvey.sweep.executors import task_ranges
+
+    one_chunk = small_spec(tmp_path, "emb1.nc", ONE_CHUNK)
+    assert one_chunk.n_launches == 390 and len(task_ranges([(0, 390)], [0], 2)) == 1
+    assert len(task_ranges([(0, 390)], [0], 2)[0]) == 6  # tasks of 65 launches
+    refs = [xr.open_dataset(run_sweep(small_spec(tmp_path, "emb.nc"), command="test")),
+            xr.open_dataset(run_sweep(one_chunk, command="test"))]
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                   host="127.0.0.1", dashboard_address=None) as cluster, \
             distributed.Client(cluster) as client:
-        got = xr.open_dataset(run_sweep(small_spec(tmp_path, "dask.nc"), client=client,
-                                        command="test"))
-    for v in ref.data_vars:
-        assert np.array_equal(ref[v].values, got[v].values, equal_nan=True), v
+        gots = [xr.open_dataset(run_sweep(small_spec(tmp_path, "dask.nc"), client=client,
+                                          command="test")),
+                xr.open_dataset(run_sweep(small_spec(tmp_path, "dask1.nc", ONE_CHUNK),
+                                          client=client, command="test"))]
+    for ref, got in zip(refs, gots):
+        for v in ref.data_vars:
+            assert np.array_equal(ref[v].values, got[v].values, equal_nan=True), v
+
+
+def test_task_ranges_cover_each_chunk_once_and_spread_one_chunk_over_the_threads():
+    from ballsurvey.sweep.executors import MIN_TASK_LAUNCHES, TASKS_PER_THREAD, task_ranges
+
+    for shape, chunk, threads in [((41, 45), 4096, 16), ((41, 45), 4096, 2), ((100, 100), 512, 8),
+                                  ((7,), 4096, 16), ((3, 4), 5, 1), ((1000,), 300, 1000)]:
+        chunks = plan_chunks(shape, chunk)
+        todo = list(range(len(chunks)))[::-1]  # any order, any subset
+        ranges = task_ranges(chunks, todo, threads)
+        assert sorted(ranges) == sorted(todo)
+        n_tasks = sum(len(r) for r in ranges.values())
+        n = int(np.prod(shape))
+        for k, r in ranges.items():
+            lo, hi = chunks[k][0], chunks[k][1]
+            assert r[0][0] == lo and r[-1][1] == hi  # the chunk, once, in order, no gaps
+            assert all(a[1] == b[0] and a[0] < a[1] for a, b in zip(r, r[1:] + [(hi, hi + 1)]))
+            assert all(b - a >= min(hi - lo, MIN_TASK_LAUNCHES // 2) for a, b in r)
+        if n >= 2 * MIN_TASK_LAUNCHES * threads * TASKS_PER_THREAD:
+            assert n_tasks >= threads * TASKS_PER_THREAD // 2  # every thread gets work
+    # the square map (one chunk of 1845) on 16 workers: every one of them busy
+    assert len(task_ranges(plan_chunks((41, 45), 4096), [0], 16)[0]) >= 16
 
 
 def test_paper_points_spec_labels():

@@ -1,8 +1,9 @@
 """Executors: who computes the chunks. `run_embedded` runs them in this process (numba threads,
-units of work in sequence with progress); `run_dask` sends whole chunks to a dask.distributed
-cluster (one serial, GIL-free kernel per worker thread); `dask_client` connects to a running
-scheduler or starts a local cluster. Both call `compute_chunk` on the same chunks, so they give
-identical files."""
+units of work in sequence with progress); `run_dask` sends the chunks to a dask.distributed
+cluster in tasks of a part of a chunk each, several per worker thread (one serial, GIL-free kernel
+per worker thread), and saves a chunk once all its tasks are back; `dask_client` connects to a
+running scheduler or starts a local cluster. Both call `compute_chunk` on ranges of the same
+launches, and every launch's arithmetic is its own, so they give identical files."""
 from __future__ import annotations
 
 import time
@@ -10,11 +11,31 @@ from contextlib import contextmanager
 
 from ..compose import warm_up
 from ..limits import RunError
-from .compute import compute_chunk
+from .compute import compute_chunk, concat
 from .spec import Spec
 
 #: default bounded wait (s) for a dask scheduler or for workers to (re)appear
 DASK_WAIT_S = 30.0
+#: dask tasks per worker thread over the launches to do (so that no thread idles at the end
+#: while another finishes a long task), and the fewest launches a task holds
+TASKS_PER_THREAD = 4
+MIN_TASK_LAUNCHES = 64
+
+
+def task_ranges(chunks: list, todo: list, threads: int) -> dict:
+    """{chunk k: [(a, b), ...]}: chunks `todo` cut into ranges of launches, about
+    TASKS_PER_THREAD per thread of the cluster in all, none below MIN_TASK_LAUNCHES (unless its
+    chunk is smaller). A one-chunk map (the default chunk holds 4096 launches) thus still
+    spreads over every worker."""
+    n = sum(chunks[k][1] - chunks[k][0] for k in todo)
+    size = max(MIN_TASK_LAUNCHES, -(-n // (TASKS_PER_THREAD * max(1, threads))))
+    out = {}
+    for k in todo:
+        lo, hi = chunks[k][0], chunks[k][1]
+        cuts = max(1, round((hi - lo) / size))
+        edges = [lo + (hi - lo) * j // cuts for j in range(cuts + 1)]
+        out[k] = list(zip(edges[:-1], edges[1:]))
+    return out
 
 
 def run_embedded(spec: Spec, chunks: list, todo: list, finished, *, partials=None,
@@ -44,8 +65,9 @@ def _warm_worker():
 
 
 def run_dask(client, spec: Spec, chunks: list, todo: list, finished, wait_s: float) -> None:
-    """Chunks on a dask cluster; a scheduler lost, or no worker, for longer than wait_s ends the
-    run with RunError (finished chunks are saved as they come)."""
+    """Chunks on a dask cluster, in tasks of `task_ranges`; finished(k, result) once all of chunk
+    k's tasks are back. A scheduler lost, or no worker, for longer than wait_s ends the run with
+    RunError (finished chunks are saved as they come; a chunk with tasks missing is not)."""
     from concurrent.futures import CancelledError
 
     from distributed import as_completed
@@ -56,18 +78,24 @@ def run_dask(client, spec: Spec, chunks: list, todo: list, finished, wait_s: flo
     resume_hint = "finished chunks are kept: run again with --resume"
     try:
         client.run(_warm_worker)
-        futs = {client.submit(compute_chunk, spec.text, spec.source, chunks[k][0], chunks[k][1],
-                              False, unit=chunks[k][1] - chunks[k][0], pure=False): k
-                for k in todo}
+        ranges = task_ranges(chunks, todo, sum(client.nthreads().values()))
+        futs = {client.submit(compute_chunk, spec.text, spec.source, a, b, False, unit=b - a,
+                              pure=False): (k, a)
+                for k in todo for a, b in ranges[k]}
     except lost as exc:
         raise RunError(f"the dask cluster failed ({type(exc).__name__}); {resume_hint}") from None
+    back = {k: {} for k in todo}  # chunk -> {first launch of a task: its results}
     ac = as_completed(list(futs))
     since = None  # when the cluster was first seen without a scheduler or workers
     try:
         while not ac.is_empty():
             batch = ac.next_batch(block=False)
             for fut in batch:
-                finished(futs[fut], fut.result())
+                k, a = futs[fut]
+                back[k][a] = fut.result()
+                if len(back[k]) == len(ranges[k]):  # the chunk is whole: save it
+                    got = back.pop(k)
+                    finished(k, concat([got[a] for a in sorted(got)], spec.variables))
             if batch:
                 since = None
                 continue
