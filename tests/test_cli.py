@@ -3,6 +3,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -61,6 +63,21 @@ def test_bench_spec_times_the_sweep_against_its_bare_kernel_and_writes_nothing(t
     r = run("bench", "--spec", str(spec))
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
     assert "mode 'period'" in r.stderr
+
+def test_bench_scaling_runs_the_spec_on_one_thread_on_threads_and_on_workers(tmp_path):
+    pytest.importorskip("distributed")
+    spec = tmp_path / "tiny.toml"
+    spec.write_text(TINY_SPEC.format(mode="full", out=tmp_path / "tiny.nc"))
+    r = run("bench", "--scaling", str(spec), "--threads", "2", "--workers", "2")
+    assert r.returncode == 0, r.stderr
+    for row in ("1 thread, one process", "2 threads, one process", "--workers 2 (dask"):
+        assert row in r.stdout
+    assert "the three maps are the same, bit for bit: yes" in r.stdout
+    assert not (tmp_path / "tiny.nc").exists()  # the maps go to a temporary folder
+    r = run("bench", "--scaling", str(spec), "--threads", "0")
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
+    assert "at least 1" in r.stderr
+
 
 def test_version():
     from importlib.metadata import version

@@ -219,6 +219,86 @@ def run_spec_bench(path, out=print) -> dict:
     return {"wall_s": wall, "bare_s": t_bare, "ratio": wall / t_bare, "times": dict(TIMES)}
 
 
+def _same_maps(a, b) -> bool:
+    """Every data variable of two map files equal, bit for bit (NaN equal to NaN)."""
+    import xarray as xr
+
+    with xr.open_dataset(a) as da, xr.open_dataset(b) as db:
+        if set(da.data_vars) != set(db.data_vars):
+            return False
+        for name in da.data_vars:
+            x, y = da[name].values, db[name].values
+            nan_ok = x.dtype.kind in "fc"
+            if x.shape != y.shape or not np.array_equal(x, y, equal_nan=nan_ok):
+                return False
+    return True
+
+
+def run_scaling(path, threads: int | None = None, workers: int | None = None,
+                out=print) -> dict:
+    """A spec's sweep end to end, each run a fresh `ballsurvey sweep` process: on 1 numba thread,
+    on `threads` (default: every core) in one process, and on a local dask cluster of `workers`
+    one-thread processes (default: as many as threads). A run of each of the last two first,
+    untimed, so that every timed run finds its kernels in the disk cache. Prints wall time, CPU
+    use and the speed-up against 1 thread, and whether the three maps are the same."""
+    import os
+    import resource
+    import subprocess
+    import sys
+    import tempfile
+    from pathlib import Path
+
+    from .limits import InputError
+    from .sweep import load_spec
+
+    spec = load_spec(path)
+    if spec.backend != "cpu":
+        raise InputError(f"{path}: bench --scaling times the cpu backend; this spec has backend "
+                         f"{spec.backend!r}")
+    if (threads is not None and threads < 1) or (workers is not None and workers < 1):
+        raise InputError("bench --scaling: --threads and --workers must be at least 1")
+    threads = threads or os.cpu_count() or 1
+    workers = workers or threads
+    runs = {"1 thread, one process": (1, []),
+            f"{threads} threads, one process": (threads, []),
+            f"--workers {workers} (dask, 1 thread each)": (1, ["--workers", str(workers)])}
+    rows = {}
+    with tempfile.TemporaryDirectory() as tmp:
+
+        def sweep(name, n_threads, extra):
+            env = dict(os.environ, NUMBA_NUM_THREADS=str(n_threads))
+            target = Path(tmp) / f"{len(rows)}-{abs(hash(name))}.nc"
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
+            t = time.perf_counter()
+            r = subprocess.run([sys.executable, "-m", "ballsurvey", "sweep", str(path), "-o",
+                                str(target), "--force", "-q", "--no-progress", *extra],
+                               env=env, capture_output=True, text=True)
+            wall = time.perf_counter() - t
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            if r.returncode != 0:
+                last = (r.stderr.strip().splitlines() or ["(no message)"])[-1]
+                raise RuntimeError(f"bench --scaling: the run '{name}' failed: {last}")
+            cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+            return wall, cpu, target
+
+        for name, (n_threads, extra) in list(runs.items())[1:]:  # fill the caches, untimed
+            sweep(name, n_threads, extra)
+        for name, (n_threads, extra) in runs.items():
+            rows[name] = sweep(name, n_threads, extra)
+        files = [row[2] for row in rows.values()]
+        same = all(_same_maps(files[0], f) for f in files[1:])
+    one = rows["1 thread, one process"][0]
+    out(f"ballsurvey scaling bench: {path}: {spec.n_launches} launches, T = {spec.T} s, "
+        f"method {spec.method}, mode {spec.mode}; {os.cpu_count()} cores here; each run a fresh "
+        f"process with warm caches")
+    out(f"  {'run':40s}{'wall (s)':>10s}{'CPU':>8s}{'speed-up':>10s}")
+    for name, (wall, cpu, _) in rows.items():
+        out(f"  {name:40s}{wall:10.2f}{100 * cpu / wall:7.0f}%{one / wall:9.1f}x")
+    out(f"  the three maps are the same, bit for bit: {'yes' if same else 'NO'}")
+    return {"runs": {k: {"wall_s": v[0], "cpu_s": v[1]} for k, v in rows.items()},
+            "same": same}
+
+
 HEADLINE_SPEC = """
 title = "headline {n}^3 map"
 [launch]

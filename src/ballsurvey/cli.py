@@ -54,6 +54,11 @@ def _cmd_bench(args):
 
         run_spec_bench(args.spec)
         return
+    if args.scaling:
+        from .bench import run_scaling
+
+        run_scaling(args.scaling, threads=args.threads, workers=args.workers)
+        return
     if args.period:
         from .bench import run_period_bench
 
@@ -510,6 +515,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="instead: a spec's sweep end to end (this fresh process, kernels from the "
                         "disk cache) against the bare kernel on the same launches and steps (no "
                         "observer, fallback, labels or file); fixed-step methods, full-length runs")
+    b.add_argument("--scaling", metavar="SPEC.toml",
+                   help="instead: a spec's sweep in fresh processes on 1 thread, on --threads "
+                        "threads and on --workers dask processes (warm caches), with the "
+                        "speed-ups and whether the maps are the same")
+    b.add_argument("--threads", type=int, metavar="N",
+                   help="--scaling: numba threads of the one-process run (default: every core)")
+    b.add_argument("--workers", type=int, metavar="N",
+                   help="--scaling: dask worker processes of the last run (default: --threads)")
     b.add_argument("--headline", type=int, metavar="N", nargs="?", const=100,
                    help="instead: an N^3 period-mode map (N = 100 when not given) with label "
                         "agreement against full integration on 1000 random launches")
