@@ -170,6 +170,7 @@ def test_dask_local_cluster_matches_embedded(tmp_path):
     one_chunk = small_spec(tmp_path, "emb1.nc", ONE_CHUNK)
     assert one_chunk.n_launches == 390 and len(task_ranges([(0, 390)], [0], 2)) == 1
     assert len(task_ranges([(0, 390)], [0], 2)[0]) == 6  # tasks of 65 launches
+    seen = []  # progress of the one-chunk map: as each task comes back
     refs = [xr.open_dataset(run_sweep(small_spec(tmp_path, "emb.nc"), command="test")),
             xr.open_dataset(run_sweep(one_chunk, command="test"))]
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
@@ -178,7 +179,9 @@ def test_dask_local_cluster_matches_embedded(tmp_path):
         gots = [xr.open_dataset(run_sweep(small_spec(tmp_path, "dask.nc"), client=client,
                                           command="test")),
                 xr.open_dataset(run_sweep(small_spec(tmp_path, "dask1.nc", ONE_CHUNK),
-                                          client=client, command="test"))]
+                                          client=client, command="test",
+                                          on_unit=lambda done, total: seen.append(done)))]
+    assert len(seen) == 6 and seen == sorted(seen) and seen[-1] == 390
     for ref, got in zip(refs, gots):
         for v in ref.data_vars:
             assert np.array_equal(ref[v].values, got[v].values, equal_nan=True), v

@@ -215,12 +215,10 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
             if on_unit is not None:
                 on_unit(state["done"], spec.n_launches)
 
-        def finished(k, result, count=False):
+        def finished(k, result):
             lo, hi, _ = chunks[k]
             _write_part(parts, k, lo, hi, spec.digest, result)
             remove_partial(parts, k)
-            if count:
-                advance(hi - lo)
             if on_chunk is not None:
                 on_chunk(k)
 
@@ -231,8 +229,8 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
                     run_embedded(spec, chunks, todo, finished, partials=partials,
                                  on_unit=advance)
                 else:
-                    run_dask(client, spec, chunks, todo,
-                             lambda k, r: finished(k, r, count=True), dask_wait_s)
+                    run_dask(client, spec, chunks, todo, finished, dask_wait_s,
+                             on_task=advance)
             compile_s = compiling["seconds"]
         except KeyboardInterrupt as exc:
             bar.close()

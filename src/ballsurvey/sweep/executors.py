@@ -64,10 +64,12 @@ def _warm_worker():
     return True
 
 
-def run_dask(client, spec: Spec, chunks: list, todo: list, finished, wait_s: float) -> None:
-    """Chunks on a dask cluster, in tasks of `task_ranges`; finished(k, result) once all of chunk
-    k's tasks are back. A scheduler lost, or no worker, for longer than wait_s ends the run with
-    RunError (finished chunks are saved as they come; a chunk with tasks missing is not)."""
+def run_dask(client, spec: Spec, chunks: list, todo: list, finished, wait_s: float, *,
+             on_task=None) -> None:
+    """Chunks on a dask cluster, in tasks of `task_ranges`; on_task(n) as each task's n launches
+    come back (progress), finished(k, result) once all of chunk k's tasks are back. A scheduler
+    lost, or no worker, for longer than wait_s ends the run with RunError (finished chunks are
+    saved as they come; a chunk with tasks missing is not)."""
     from concurrent.futures import CancelledError
 
     from distributed import as_completed
@@ -93,6 +95,8 @@ def run_dask(client, spec: Spec, chunks: list, todo: list, finished, wait_s: flo
             for fut in batch:
                 k, a = futs[fut]
                 back[k][a] = fut.result()
+                if on_task is not None:
+                    on_task(len(next(iter(back[k][a].values()))))
                 if len(back[k]) == len(ranges[k]):  # the chunk is whole: save it
                     got = back.pop(k)
                     finished(k, concat([got[a] for a in sorted(got)], spec.variables))
