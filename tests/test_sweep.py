@@ -187,6 +187,63 @@ def test_dask_local_cluster_matches_embedded(tmp_path):
             assert np.array_equal(ref[v].values, got[v].values, equal_nan=True), v
 
 
+def _interrupt_after(n):
+    """on_unit for run_sweep: Ctrl-C once n launches are reported done."""
+    def on_unit(done, total):
+        if done >= n:
+            raise KeyboardInterrupt
+    return on_unit
+
+
+def _partial_lengths(parts):
+    out = {}
+    for p in parts.glob("partial-*.npz"):
+        with np.load(p) as z:
+            out[p.name] = json.loads(str(z["__meta__"]))["done"]
+    return out
+
+
+def test_dask_ctrl_c_keeps_a_chunks_tasks_in_a_row_and_resume_uses_partials(tmp_path):
+    """Ctrl-C on a dask run keeps, of a chunk not yet whole, its launches back in a row from its
+    start (a partial part), says exactly how many it kept, and --resume on dask computes only the
+    rest; an embedded run's partial part is used by a dask resume the same way."""
+    distributed = pytest.importorskip("distributed")
+    from ballsurvey.sweep.engine import SweepInterrupted
+
+    ref = xr.open_dataset(run_sweep(small_spec(tmp_path, "ref.nc", ONE_CHUNK), command="t"))
+    emb = small_spec(tmp_path, "emb.nc", ONE_CHUNK)
+    with pytest.raises(SweepInterrupted) as caught:  # embedded: stops after its first unit
+        run_sweep(emb, command="t", on_unit=_interrupt_after(1))
+    kept_emb = caught.value.kept
+    assert 0 < kept_emb < 390
+    assert list(_partial_lengths(parts_dir(emb.output)).values()) == [kept_emb]
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  host="127.0.0.1", dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        seen, report = [], {}
+        run_sweep(emb, resume=True, client=client, command="t", report=report,
+                  on_unit=lambda done, total: seen.append(done))
+        assert report["resumed"] == kept_emb and report["computed"] == 390 - kept_emb
+        assert seen == sorted(seen) and seen[-1] == 390  # no launch counted twice
+        same_maps(ref, xr.open_dataset(emb.output))
+
+        dsk = small_spec(tmp_path, "dask.nc", ONE_CHUNK)
+        with pytest.raises(SweepInterrupted) as caught:
+            run_sweep(dsk, client=client, command="t", on_unit=_interrupt_after(130))
+        kept = caught.value.kept
+        on_disk = sum(_partial_lengths(parts_dir(dsk.output)).values())
+        assert kept == on_disk and kept % 65 == 0  # whole tasks of 65, in a row from 0
+        report = {}
+        run_sweep(dsk, resume=True, client=client, command="t", report=report)
+        assert report["resumed"] == kept
+        same_maps(ref, xr.open_dataset(dsk.output))
+
+
+def same_maps(ref, got):
+    for v in ref.data_vars:
+        assert np.array_equal(ref[v].values, got[v].values, equal_nan=True), v
+
+
 def test_task_ranges_cover_each_chunk_once_and_spread_one_chunk_over_the_threads():
     from ballsurvey.sweep.executors import MIN_TASK_LAUNCHES, TASKS_PER_THREAD, task_ranges
 
@@ -202,7 +259,7 @@ def test_task_ranges_cover_each_chunk_once_and_spread_one_chunk_over_the_threads
             lo, hi = chunks[k][0], chunks[k][1]
             assert r[0][0] == lo and r[-1][1] == hi  # the chunk, once, in order, no gaps
             assert all(a[1] == b[0] and a[0] < a[1] for a, b in zip(r, r[1:] + [(hi, hi + 1)]))
-            assert all(b - a >= min(hi - lo, MIN_TASK_LAUNCHES // 2) for a, b in r)
+            assert all(b - a >= min(hi - lo, MIN_TASK_LAUNCHES) for a, b in r)
         if n >= 2 * MIN_TASK_LAUNCHES * threads * TASKS_PER_THREAD:
             assert n_tasks >= threads * TASKS_PER_THREAD // 2  # every thread gets work
     # the square map (one chunk of 1845) on 16 workers: every one of them busy

@@ -215,10 +215,13 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
             if on_unit is not None:
                 on_unit(state["done"], spec.n_launches)
 
+        saved = set(done)  # chunks whose part is on disk
+
         def finished(k, result):
             lo, hi, _ = chunks[k]
             _write_part(parts, k, lo, hi, spec.digest, result)
             remove_partial(parts, k)
+            saved.add(k)
             if on_chunk is not None:
                 on_chunk(k)
 
@@ -230,9 +233,9 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
                                  on_unit=advance)
                 else:
                     run_dask(client, spec, chunks, todo, finished, dask_wait_s,
-                             on_task=advance)
+                             partials=partials, on_task=advance)
             compile_s = compiling["seconds"]
-        except KeyboardInterrupt as exc:
+        except (KeyboardInterrupt, RunError) as exc:
             bar.close()
             with _NoSigint():
                 if isinstance(exc, ChunkInterrupted) and exc.done > 0:
@@ -243,7 +246,22 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
                         remove_partial(parts, k)
                     else:
                         write_partial(parts, k, lo, hi, spec.digest, exc.result, exc.done)
-            raise SweepInterrupted(parts, state["done"], spec.n_launches) from None
+                # dask: each unsaved chunk's launches back in a row from its start
+                prefixes = getattr(exc, "prefixes", {})
+                for k, result in prefixes.items():
+                    lo, hi, _ = chunks[k]
+                    write_partial(parts, k, lo, hi, spec.digest, result,
+                                  len(next(iter(result.values()))))
+            if isinstance(exc, RunError):
+                raise
+            if client is None:
+                kept = state["done"]  # every finished unit is saved
+            else:  # tasks back but not in a row from their chunk's start are not
+                partial = {**{k: len(next(iter(v.values()))) for k, v in partials.items()},
+                           **{k: len(next(iter(v.values()))) for k, v in prefixes.items()}}
+                kept = sum(chunks[k][1] - chunks[k][0] for k in saved) + \
+                    sum(n for k, n in partial.items() if k not in saved)
+            raise SweepInterrupted(parts, kept, spec.n_launches) from None
         finally:
             bar.close()
 

@@ -22,17 +22,20 @@ TASKS_PER_THREAD = 4
 MIN_TASK_LAUNCHES = 64
 
 
-def task_ranges(chunks: list, todo: list, threads: int) -> dict:
+def task_ranges(chunks: list, todo: list, threads: int, start: dict | None = None) -> dict:
     """{chunk k: [(a, b), ...]}: chunks `todo` cut into ranges of launches, about
-    TASKS_PER_THREAD per thread of the cluster in all, none below MIN_TASK_LAUNCHES (unless its
-    chunk is smaller). A one-chunk map (the default chunk holds 4096 launches) thus still
-    spreads over every worker."""
-    n = sum(chunks[k][1] - chunks[k][0] for k in todo)
+    TASKS_PER_THREAD per thread of the cluster in all, none below MIN_TASK_LAUNCHES (unless what
+    is left of its chunk is smaller). A one-chunk map (the default chunk holds 4096 launches) thus
+    still spreads over every worker. start: {k: launches of chunk k already done (a partial part
+    of an interrupted run)}; its ranges begin after them."""
+    start = start or {}
+    first = {k: chunks[k][0] + start.get(k, 0) for k in todo}
+    n = sum(chunks[k][1] - first[k] for k in todo)
     size = max(MIN_TASK_LAUNCHES, -(-n // (TASKS_PER_THREAD * max(1, threads))))
     out = {}
     for k in todo:
-        lo, hi = chunks[k][0], chunks[k][1]
-        cuts = max(1, round((hi - lo) / size))
+        lo, hi = first[k], chunks[k][1]
+        cuts = max(1, (hi - lo) // size)
         edges = [lo + (hi - lo) * j // cuts for j in range(cuts + 1)]
         out[k] = list(zip(edges[:-1], edges[1:]))
     return out
@@ -65,41 +68,62 @@ def _warm_worker():
 
 
 def run_dask(client, spec: Spec, chunks: list, todo: list, finished, wait_s: float, *,
-             on_task=None) -> None:
+             partials=None, on_task=None) -> None:
     """Chunks on a dask cluster, in tasks of `task_ranges`; on_task(n) as each task's n launches
-    come back (progress), finished(k, result) once all of chunk k's tasks are back. A scheduler
-    lost, or no worker, for longer than wait_s ends the run with RunError (finished chunks are
-    saved as they come; a chunk with tasks missing is not)."""
+    come back (progress), finished(k, result) once all of chunk k's tasks are back. partials:
+    {k: results of chunk k's first launches} kept from an interrupted run (not computed again).
+    A scheduler lost, or no worker, for longer than wait_s ends the run with RunError (finished
+    chunks are saved as they come). On Ctrl-C or RunError the exception carries `prefixes`:
+    {k: results of chunk k's first launches, its partial and the tasks back in a row from it},
+    for the caller to save as partial parts."""
     from concurrent.futures import CancelledError
 
     from distributed import as_completed
     from distributed.comm.core import CommClosedError
     from distributed.scheduler import KilledWorker
 
+    partials = {k: v for k, v in (partials or {}).items() if k in todo}
     lost = (CancelledError, CommClosedError, KilledWorker, OSError, TimeoutError)
     resume_hint = "finished chunks are kept: run again with --resume"
     try:
         client.run(_warm_worker)
-        ranges = task_ranges(chunks, todo, sum(client.nthreads().values()))
+        ranges = task_ranges(chunks, todo, sum(client.nthreads().values()),
+                             {k: _length(v) for k, v in partials.items()})
         futs = {client.submit(compute_chunk, spec.text, spec.source, a, b, False, unit=b - a,
                               pure=False): (k, a)
                 for k in todo for a, b in ranges[k]}
     except lost as exc:
         raise RunError(f"the dask cluster failed ({type(exc).__name__}); {resume_hint}") from None
     back = {k: {} for k in todo}  # chunk -> {first launch of a task: its results}
+
+    def prefixes() -> dict:
+        out = {}
+        for k, got in back.items():
+            pieces = [partials[k]] if k in partials else []
+            for a, _ in ranges[k]:
+                if a not in got:
+                    break
+                pieces.append(got[a])
+            if len(pieces) > (k in partials):  # something beyond the partial already saved
+                out[k] = concat(pieces, spec.variables)
+        return out
+
     ac = as_completed(list(futs))
     since = None  # when the cluster was first seen without a scheduler or workers
     try:
         while not ac.is_empty():
             batch = ac.next_batch(block=False)
             for fut in batch:
-                k, a = futs[fut]
+                k, a = futs.pop(fut)
                 back[k][a] = fut.result()
+                fut.release()  # the result is here: the worker need not keep it
                 if on_task is not None:
-                    on_task(len(next(iter(back[k][a].values()))))
+                    on_task(_length(back[k][a]))
                 if len(back[k]) == len(ranges[k]):  # the chunk is whole: save it
                     got = back.pop(k)
-                    finished(k, concat([got[a] for a in sorted(got)], spec.variables))
+                    pieces = ([partials[k]] if k in partials else []) + \
+                        [got[a] for a in sorted(got)]
+                    finished(k, concat(pieces, spec.variables))
             if batch:
                 since = None
                 continue
@@ -115,13 +139,24 @@ def run_dask(client, spec: Spec, chunks: list, todo: list, finished, wait_s: flo
             elif time.monotonic() - since > wait_s:
                 what = ("no dask workers" if client.status == "running"
                         else "lost the dask scheduler")
-                raise RunError(f"{what} for {wait_s:g} s; {resume_hint}")
+                err = RunError(f"{what} for {wait_s:g} s; {resume_hint}")
+                err.prefixes = prefixes()
+                raise err
     except lost as exc:
-        raise RunError(f"the dask cluster failed ({type(exc).__name__}: {str(exc)[:80]}); "
-                       f"{resume_hint}") from None
+        err = RunError(f"the dask cluster failed ({type(exc).__name__}: {str(exc)[:80]}); "
+                       f"{resume_hint}")
+        err.prefixes = prefixes()
+        raise err from None
+    except KeyboardInterrupt as exc:
+        exc.prefixes = prefixes()
+        raise
     finally:
         for fut in futs:
             fut.release()
+
+
+def _length(result: dict) -> int:
+    return len(next(iter(result.values())))
 
 
 @contextmanager
