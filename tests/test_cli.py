@@ -72,11 +72,14 @@ def test_bench_scaling_runs_the_spec_on_one_thread_on_threads_and_on_workers(tmp
     assert r.returncode == 0, r.stderr
     for row in ("1 thread, one process", "2 threads, one process", "--workers 2 (dask"):
         assert row in r.stdout
-    assert "the three maps are the same, bit for bit: yes" in r.stdout
+    assert "the 3 maps are the same, bit for bit: yes" in r.stdout
     assert not (tmp_path / "tiny.nc").exists()  # the maps go to a temporary folder
-    r = run("bench", "--scaling", str(spec), "--threads", "0")
-    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
-    assert "at least 1" in r.stderr
+    for bad, says in ((["--scaling", str(spec), "--threads", "0"], "--threads: must be >= 1"),
+                      (["--scaling", str(spec), "--workers", "2000"], "--workers: must be <="),
+                      (["--workers", "2"], "go with --scaling")):
+        r = run("bench", *bad)  # refused before anything runs
+        assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+        assert says in r.stderr, r.stderr
 
 
 def test_version():

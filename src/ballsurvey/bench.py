@@ -234,13 +234,25 @@ def _same_maps(a, b) -> bool:
     return True
 
 
+def _cores() -> int:
+    """Cores this process may run on (its CPU affinity where the system tells it)."""
+    import os
+
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
 def run_scaling(path, threads: int | None = None, workers: int | None = None,
                 out=print) -> dict:
     """A spec's sweep end to end, each run a fresh `ballsurvey sweep` process: on 1 numba thread,
-    on `threads` (default: every core) in one process, and on a local dask cluster of `workers`
-    one-thread processes (default: as many as threads). A run of each of the last two first,
-    untimed, so that every timed run finds its kernels in the disk cache. Prints wall time, CPU
-    use and the speed-up against 1 thread, and whether the three maps are the same."""
+    on `threads` (default: every core this process may use) in one process, and on a local dask
+    cluster of `workers` one-thread processes (default: as many as threads; left out, with a
+    line, when dask is not installed). A run of each of the last two first, untimed, so that
+    every timed run finds its kernels in the disk cache. Prints wall time, CPU use and the
+    speed-up against 1 thread, and whether the maps are the same."""
+    import importlib.util
     import os
     import resource
     import subprocess
@@ -248,26 +260,31 @@ def run_scaling(path, threads: int | None = None, workers: int | None = None,
     import tempfile
     from pathlib import Path
 
-    from .limits import InputError
+    from . import limits
+    from .limits import InputError, RunError
     from .sweep import load_spec
 
+    for name, value in (("--threads", threads), ("--workers", workers)):
+        if value is not None:
+            limits.workers(value, name)  # at least 1, at most limits.MAX_WORKERS
     spec = load_spec(path)
     if spec.backend != "cpu":
         raise InputError(f"{path}: bench --scaling times the cpu backend; this spec has backend "
                          f"{spec.backend!r}")
-    if (threads is not None and threads < 1) or (workers is not None and workers < 1):
-        raise InputError("bench --scaling: --threads and --workers must be at least 1")
-    threads = threads or os.cpu_count() or 1
+    threads = threads or _cores()
     workers = workers or threads
-    runs = {"1 thread, one process": (1, []),
-            f"{threads} threads, one process": (threads, []),
-            f"--workers {workers} (dask, 1 thread each)": (1, ["--workers", str(workers)])}
+    runs = {"1 thread, one process": (1, [])}
+    if threads > 1:
+        runs[f"{threads} threads, one process"] = (threads, [])
+    has_dask = importlib.util.find_spec("distributed") is not None
+    if has_dask:
+        runs[f"--workers {workers} (dask, 1 thread each)"] = (1, ["--workers", str(workers)])
     rows = {}
     with tempfile.TemporaryDirectory() as tmp:
 
         def sweep(name, n_threads, extra):
             env = dict(os.environ, NUMBA_NUM_THREADS=str(n_threads))
-            target = Path(tmp) / f"{len(rows)}-{abs(hash(name))}.nc"
+            target = Path(tmp) / f"run{len(rows)}.nc"
             before = resource.getrusage(resource.RUSAGE_CHILDREN)
             t = time.perf_counter()
             r = subprocess.run([sys.executable, "-m", "ballsurvey", "sweep", str(path), "-o",
@@ -277,11 +294,11 @@ def run_scaling(path, threads: int | None = None, workers: int | None = None,
             after = resource.getrusage(resource.RUSAGE_CHILDREN)
             if r.returncode != 0:
                 last = (r.stderr.strip().splitlines() or ["(no message)"])[-1]
-                raise RuntimeError(f"bench --scaling: the run '{name}' failed: {last}")
+                raise RunError(f"the run '{name}' failed: {last}")
             cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
             return wall, cpu, target
 
-        for name, (n_threads, extra) in list(runs.items())[1:]:  # fill the caches, untimed
+        for name, (n_threads, extra) in list(runs.items())[-2:]:  # fill the caches, untimed
             sweep(name, n_threads, extra)
         for name, (n_threads, extra) in runs.items():
             rows[name] = sweep(name, n_threads, extra)
@@ -289,15 +306,16 @@ def run_scaling(path, threads: int | None = None, workers: int | None = None,
         same = all(_same_maps(files[0], f) for f in files[1:])
     one = rows["1 thread, one process"][0]
     out(f"ballsurvey scaling bench: {path}: {spec.n_launches} launches, T = {spec.T} s, "
-        f"method {spec.method}, mode {spec.mode}; {os.cpu_count()} cores here; each run a fresh "
+        f"method {spec.method}, mode {spec.mode}; {_cores()} cores here; each run a fresh "
         f"process with warm caches")
     out(f"  {'run':40s}{'wall (s)':>10s}{'CPU':>8s}{'speed-up':>10s}")
     for name, (wall, cpu, _) in rows.items():
         out(f"  {name:40s}{wall:10.2f}{100 * cpu / wall:7.0f}%{one / wall:9.1f}x")
-    out(f"  the three maps are the same, bit for bit: {'yes' if same else 'NO'}")
+    if not has_dask:
+        out("  (--workers left out: dask is not installed; pip install 'ballsurvey[dask]')")
+    out(f"  the {len(rows)} maps are the same, bit for bit: {'yes' if same else 'NO'}")
     return {"runs": {k: {"wall_s": v[0], "cpu_s": v[1]} for k, v in rows.items()},
             "same": same}
-
 
 HEADLINE_SPEC = """
 title = "headline {n}^3 map"

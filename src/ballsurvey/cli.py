@@ -46,6 +46,9 @@ def _out_file(name, value, suffix):
 def _cmd_bench(args):
     from .bench import run_bench, run_map_bench
 
+    if not args.scaling and (args.threads is not None or args.workers is not None):
+        raise InputError("--threads and --workers go with --scaling SPEC.toml")
+
     if args.map:
         run_map_bench(n=args.map, T=args.T, dt=args.dt)
         return
