@@ -35,7 +35,8 @@ def task_ranges(chunks: list, todo: list, threads: int, start: dict | None = Non
     out = {}
     for k in todo:
         lo, hi = first[k], chunks[k][1]
-        cuts = max(1, (hi - lo) // size)
+        # as many tasks as size asks (rounded up, for balance), none below the fewest
+        cuts = max(1, min(-(-(hi - lo) // size), (hi - lo) // MIN_TASK_LAUNCHES))
         edges = [lo + (hi - lo) * j // cuts for j in range(cuts + 1)]
         out[k] = list(zip(edges[:-1], edges[1:]))
     return out
