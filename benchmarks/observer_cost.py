@@ -24,6 +24,7 @@ import numpy as np
 from ballsurvey import bench
 from ballsurvey.classify import observer as observer_module
 from ballsurvey.classify.observer import N_OBS
+from ballsurvey.integrate.binding import inlined
 from ballsurvey.integrate.ensemble import kernel_module_source
 
 N_LAUNCHES, N_STEPS, DT, EVERY, BLOCK = 4096, 2000, 1e-4, 4, 64
@@ -61,8 +62,9 @@ def _module(source: str, name: str, **stubs) -> types.ModuleType:
 
 
 def _kernel(record, done, **stubs):
+    """The RK4 kernel as `ensemble.make_kernels` binds it (numba inlines `record`), in memory."""
     kernel = _module(kernel_module_source("rk4"), "observer_cost_kernel", **stubs)
-    kernel.record, kernel.done = record, done
+    kernel.record, kernel.done = inlined(record), done
     return kernel.run_parallel
 
 

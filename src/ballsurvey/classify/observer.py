@@ -74,10 +74,7 @@ def _quadrant(u, w):
     return 2.0 if u <= 0.0 else 3.0
 
 
-# inlined by numba itself into each kernel's sample loop: as a call (LLVM's inliner finds it too
-# big) it cost a tenth more of the observer's time (benchmarks/observer_cost.py's method, the same
-# record bit for bit: 42 % -> 38 % above the bare kernel)
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@jit
 def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, chdd, phdd, c, A, B,
             psid_in=math.nan, fric_in=math.nan, normal_in=math.nan):
     """Update launch i's slots with one sample (time t, step dt since the previous sample).

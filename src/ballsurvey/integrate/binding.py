@@ -24,6 +24,7 @@ import inspect
 import os
 import sys
 from collections.abc import Callable
+from functools import cache
 from pathlib import Path
 from typing import NamedTuple
 
@@ -53,14 +54,32 @@ def _identity(fn) -> str:
 _MODULES: dict = {}
 
 
-def bind(name: str, source: str, observer: Observer | None):
+@cache
+def inlined(fn):
+    """`fn` (a numba function) compiled again from its Python source for numba to inline into
+    every caller's IR (`inline="always"`), as it does the fixed-frame right-hand side: LLVM's
+    inliner finds the observer too big, and as a call it cost the RK4 kernel a tenth of the
+    observer's time (benchmarks/observer_cost.py; the same record bit for bit). Only the hot
+    kernels take it (`bind(..., inline_record=True)`): the inlined body is compiled again at each
+    call site, which doubled the adaptive fallback's first compilation (25 -> 48 s)."""
+    import numba
+
+    opts = {k: v for k, v in fn.targetoptions.items() if k in ("nogil", "error_model")}
+    return numba.njit(inline="always", **opts)(fn.py_func)
+
+
+def bind(name: str, source: str, observer: Observer | None, *, inline_record: bool = False):
     """The module of `source` (a template with `record` and `done` globals) bound to `observer`
-    (None: a kernel with no observer; its module is cached all the same)."""
+    (None: a kernel with no observer; its module is cached all the same). inline_record: numba
+    inlines the observer's `record` into the kernel (`inlined`)."""
     if observer is None:
         text = source + "\n\n# no observer\n"
     else:
+        if inline_record:
+            observer = Observer(record=inlined(observer.record), done=observer.done)
         text = (source + "\n\n# observer bound by ballsurvey.integrate.binding:\n"
-                f"#   record = {_identity(observer.record)}\n"
+                f"#   record = {_identity(observer.record)}"
+                f"{' (inlined)' if inline_record else ''}\n"
                 f"#   done = {_identity(observer.done)}\n")
     digest = hashlib.sha256(f"{text}\0{SOURCE_DIGEST}".encode()).hexdigest()[:16]
     modname = f"ballsurvey_{name}_{digest}"

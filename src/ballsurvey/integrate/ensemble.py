@@ -298,7 +298,7 @@ def make_kernels(method: str, observer: Observer):
     the same blocks on the calling thread with the GIL released (for dask workers, which must not
     nest parallel kernels). Both call the same block kernel, so their results are identical.
     """
-    mod = bind(f"rk_{method}", kernel_module_source(method), observer)
+    mod = bind(f"rk_{method}", kernel_module_source(method), observer, inline_record=True)
     return mod.run_parallel, mod.run_serial, mod.run_parallel_refill, mod.run_serial_refill
 
 

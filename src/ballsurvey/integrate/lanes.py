@@ -534,7 +534,8 @@ def make_observed_kernels(method: str, observer: Observer):
     bound to `observer` (`binding.bind`)."""
     if method not in LANE_ADAPTIVE:
         raise ValueError(f"unknown lane method {method!r}; known: {', '.join(LANE_ADAPTIVE)}")
-    mod = bind(f"lanes_obs_{method}", observed_module_source(LANE_ADAPTIVE[method]), observer)
+    mod = bind(f"lanes_obs_{method}", observed_module_source(LANE_ADAPTIVE[method]), observer,
+               inline_record=True)
     return mod.run_parallel, mod.run_serial
 
 
