@@ -238,6 +238,22 @@ def test_dask_ctrl_c_keeps_a_chunks_tasks_in_a_row_and_resume_uses_partials(tmp_
         assert report["resumed"] == kept
         same_maps(ref, xr.open_dataset(dsk.output))
 
+        # chunks of one task each: a Ctrl-C at the first progress finds that chunk already saved
+        # as a whole part (a whole chunk saved as a partial part would be refused on resume)
+        many = small_spec(tmp_path, "many.nc")
+        with pytest.raises(SweepInterrupted) as caught:
+            run_sweep(many, client=client, command="t", on_unit=_interrupt_after(1))
+        parts = parts_dir(many.output)
+        plan = plan_chunks(many.shape, many.chunk)
+        saved = [int(f.stem.split("-")[1]) for f in parts.glob("chunk-*.npz")]
+        assert caught.value.kept == sum(plan[k][1] - plan[k][0] for k in saved) > 0
+        assert not list(parts.glob("partial-*.npz"))
+        report = {}
+        run_sweep(many, resume=True, client=client, command="t", report=report)
+        assert report["resumed"] == caught.value.kept
+        same_maps(xr.open_dataset(run_sweep(small_spec(tmp_path, "many-ref.nc"), command="t")),
+                  xr.open_dataset(many.output))
+
 
 def same_maps(ref, got):
     for v in ref.data_vars:

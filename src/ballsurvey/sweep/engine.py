@@ -250,8 +250,11 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
                 prefixes = getattr(exc, "prefixes", {})
                 for k, result in prefixes.items():
                     lo, hi, _ = chunks[k]
-                    write_partial(parts, k, lo, hi, spec.digest, result,
-                                  len(next(iter(result.values()))))
+                    n = len(next(iter(result.values())))
+                    if n >= hi - lo:  # whole (Ctrl-C came while it was being saved)
+                        finished(k, result)
+                    else:
+                        write_partial(parts, k, lo, hi, spec.digest, result, n)
             if isinstance(exc, RunError):
                 raise
             if client is None:

@@ -118,13 +118,14 @@ def run_dask(client, spec: Spec, chunks: list, todo: list, finished, wait_s: flo
                 k, a = futs.pop(fut)
                 back[k][a] = fut.result()
                 fut.release()  # the result is here: the worker need not keep it
-                if on_task is not None:
-                    on_task(_length(back[k][a]))
-                if len(back[k]) == len(ranges[k]):  # the chunk is whole: save it
-                    got = back.pop(k)
+                n = _length(back[k][a])
+                if len(back[k]) == len(ranges[k]):  # the chunk is whole: save it first
                     pieces = ([partials[k]] if k in partials else []) + \
-                        [got[a] for a in sorted(got)]
+                        [back[k][a] for a in sorted(back[k])]
                     finished(k, concat(pieces, spec.variables))
+                    del back[k]
+                if on_task is not None:
+                    on_task(n)
             if batch:
                 since = None
                 continue
