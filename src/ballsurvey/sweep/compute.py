@@ -54,6 +54,11 @@ def _threads(parallel: bool) -> int:
     return max(1, numba.get_num_threads())
 
 
+def n_launches(result: dict) -> int:
+    """How many launches a result ({variable: array}) holds."""
+    return len(next(iter(result.values())))
+
+
 def concat(pieces: list[dict], variables) -> dict:
     if len(pieces) == 1:
         return pieces[0]
@@ -71,7 +76,7 @@ def compute_chunk(spec_text: str, spec_source: str, lo: int, hi: int, parallel: 
     launches finished so far."""
     spec = load_spec(spec_source, text=spec_text)
     pieces = [done] if done else []
-    a = lo + (len(next(iter(done.values()))) if done else 0)
+    a = lo + (n_launches(done) if done else 0)
     threads = _threads(parallel)
     smallest = min(hi - lo, 4 * threads)
     size = unit or smallest
@@ -92,7 +97,7 @@ def compute_chunk(spec_text: str, spec_source: str, lo: int, hi: int, parallel: 
         # what is saved is what was computed: a Ctrl-C between a unit's end and `a = b` must not
         # drop that unit (it was already counted as done)
         got = concat(pieces, spec.variables) if pieces else {}
-        done = len(next(iter(got.values()))) if got else 0
+        done = n_launches(got) if got else 0
         raise ChunkInterrupted(got, done) from None
     return concat(pieces, spec.variables)
 

@@ -31,7 +31,7 @@ from .. import limits
 from ..classify.labels import LABELS
 from ..limits import RunError
 from ..store import write_netcdf as _write_netcdf_store
-from .compute import ChunkInterrupted, compile_watch, compute_chunk
+from .compute import ChunkInterrupted, compile_watch, compute_chunk, n_launches
 from .executors import DASK_WAIT_S, dask_client, run_dask, run_embedded
 from .parts import (
     OutputBusy,
@@ -195,7 +195,7 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
         partials = read_partials(parts, spec, chunks, done, notice)
         todo = [k for k in range(len(chunks)) if k not in done]
         n_resumed = sum(chunks[k][1] - chunks[k][0] for k in done) + \
-            sum(len(next(iter(p.values()))) for p in partials.values())
+            sum(n_launches(p) for p in partials.values())
         state = {"done": n_resumed}
         if progress is None:
             progress = sys.stderr.isatty()
@@ -250,7 +250,7 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
                 prefixes = getattr(exc, "prefixes", {})
                 for k, result in prefixes.items():
                     lo, hi, _ = chunks[k]
-                    n = len(next(iter(result.values())))
+                    n = n_launches(result)
                     if n >= hi - lo:  # whole (Ctrl-C came while it was being saved)
                         finished(k, result)
                     else:
@@ -260,8 +260,7 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
             if client is None:
                 kept = state["done"]  # every finished unit is saved
             else:  # tasks back but not in a row from their chunk's start are not
-                partial = {**{k: len(next(iter(v.values()))) for k, v in partials.items()},
-                           **{k: len(next(iter(v.values()))) for k, v in prefixes.items()}}
+                partial = {k: n_launches(v) for k, v in {**partials, **prefixes}.items()}
                 kept = sum(chunks[k][1] - chunks[k][0] for k in saved) + \
                     sum(n for k, n in partial.items() if k not in saved)
             raise SweepInterrupted(parts, kept, spec.n_launches) from None

@@ -11,7 +11,7 @@ from contextlib import contextmanager
 
 from ..compose import warm_up
 from ..limits import RunError
-from .compute import compute_chunk, concat
+from .compute import compute_chunk, concat, n_launches
 from .spec import Spec
 
 #: default bounded wait (s) for a dask scheduler or for workers to (re)appear
@@ -89,7 +89,7 @@ def run_dask(client, spec: Spec, chunks: list, todo: list, finished, wait_s: flo
     try:
         client.run(_warm_worker)
         ranges = task_ranges(chunks, todo, sum(client.nthreads().values()),
-                             {k: _length(v) for k, v in partials.items()})
+                             {k: n_launches(v) for k, v in partials.items()})
         futs = {client.submit(compute_chunk, spec.text, spec.source, a, b, False, unit=b - a,
                               pure=False): (k, a)
                 for k in todo for a, b in ranges[k]}
@@ -97,14 +97,19 @@ def run_dask(client, spec: Spec, chunks: list, todo: list, finished, wait_s: flo
         raise RunError(f"the dask cluster failed ({type(exc).__name__}); {resume_hint}") from None
     back = {k: {} for k in todo}  # chunk -> {first launch of a task: its results}
 
+    def in_a_row(k) -> list:
+        """Chunk k's results from its start on: its partial, then its tasks back in a row."""
+        pieces = [partials[k]] if k in partials else []
+        for a, _ in ranges[k]:
+            if a not in back[k]:
+                break
+            pieces.append(back[k][a])
+        return pieces
+
     def prefixes() -> dict:
         out = {}
-        for k, got in back.items():
-            pieces = [partials[k]] if k in partials else []
-            for a, _ in ranges[k]:
-                if a not in got:
-                    break
-                pieces.append(got[a])
+        for k in back:
+            pieces = in_a_row(k)
             if len(pieces) > (k in partials):  # something beyond the partial already saved
                 out[k] = concat(pieces, spec.variables)
         return out
@@ -118,11 +123,9 @@ def run_dask(client, spec: Spec, chunks: list, todo: list, finished, wait_s: flo
                 k, a = futs.pop(fut)
                 back[k][a] = fut.result()
                 fut.release()  # the result is here: the worker need not keep it
-                n = _length(back[k][a])
+                n = n_launches(back[k][a])
                 if len(back[k]) == len(ranges[k]):  # the chunk is whole: save it first
-                    pieces = ([partials[k]] if k in partials else []) + \
-                        [back[k][a] for a in sorted(back[k])]
-                    finished(k, concat(pieces, spec.variables))
+                    finished(k, concat(in_a_row(k), spec.variables))
                     del back[k]
                 if on_task is not None:
                     on_task(n)
@@ -155,10 +158,6 @@ def run_dask(client, spec: Spec, chunks: list, todo: list, finished, wait_s: flo
     finally:
         for fut in futs:
             fut.release()
-
-
-def _length(result: dict) -> int:
-    return len(next(iter(result.values())))
 
 
 @contextmanager
