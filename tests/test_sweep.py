@@ -53,6 +53,27 @@ def test_plan_chunks_cover_the_grid_once():
         assert all(a[1] == b[0] for a, b in zip(seen, seen[1:]))
 
 
+def test_storage_chunks_lie_inside_one_slab_each():
+    """netCDF storage chunks never straddle two write slabs (a straddled chunk is decompressed and
+    compressed again at each write: the 1e8-launch map spent minutes there): every slab starts
+    and ends on storage-chunk boundaries (or the axis end), and a chunk holds at most the
+    target's values."""
+    from ballsurvey.store import storage_chunks
+
+    for shape, chunk, target in [((464, 1, 464, 464), 1 << 20, 1 << 20),
+                                 ((100, 1, 100, 100), 8192, 1 << 20), ((3000, 3000), 1 << 22, 1 << 20),
+                                 ((41, 1, 45, 1), 4096, 1 << 20), ((4, 3, 2, 1), 5, 4),
+                                 ((97, 89), 1000, 64), ((600,), 4096, 100), ((7,), 3, 2)]:
+        plan = plan_chunks(shape, chunk)
+        sizes = storage_chunks(plan[0][2], target)
+        assert len(sizes) == len(shape) and all(1 <= c <= s for c, s in zip(sizes, shape))
+        assert int(np.prod(sizes)) <= target, (shape, sizes)
+        for _lo, _hi, slab in plan:
+            for ax, (s, c) in enumerate(zip(slab, sizes)):
+                a, b = (s, s + 1) if isinstance(s, int) else (s.start, s.stop)
+                assert a % c == 0 and (b % c == 0 or b == shape[ax]), (shape, chunk, slab, sizes)
+
+
 def test_sweep_writes_a_cf_file_that_xarray_reads(tmp_path):
     spec = small_spec(tmp_path)
     out = run_sweep(spec, command="test")

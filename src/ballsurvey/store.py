@@ -6,6 +6,8 @@ Files follow CF-1.10 (checked in the tests with the IOOS compliance-checker).
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .classify.labels import CORNER_KINDS, LABELS
@@ -88,6 +90,30 @@ def decode_label(codes) -> np.ndarray:
     return words[np.where((codes >= 0) & (codes < len(LABELS)), codes, len(LABELS))]
 
 
+#: most values in one netCDF storage chunk (8 MB of float64)
+STORAGE_CHUNK_VALUES = 1 << 20
+
+
+def storage_chunks(slab, target: int = STORAGE_CHUNK_VALUES) -> tuple:
+    """The netCDF storage-chunk shape for a map written slab by slab (`sweep.plan_chunks`): each
+    storage chunk lies inside one slab, so it is compressed and written once, and it holds at
+    most `target` values.
+
+    A slab is single indices on the outer axes, a run of indices on its split axis (every slab's
+    run starts at a multiple of the first's) and whole inner axes. Storage chunks that straddled
+    two slabs were read back, decompressed and compressed again at every write that touched
+    them: a 1e8-launch map, whose 134 MB chunks each spanned 4 slabs, spent minutes there."""
+    sizes = [1 if isinstance(s, (int, np.integer)) else s.stop - s.start for s in slab]
+    split = next((i for i, s in enumerate(slab) if not isinstance(s, (int, np.integer))), 0)
+    run = sizes[split]
+    while math.prod(sizes) > target and sizes[split] > 1:  # a divisor of the run
+        sizes[split] = max(d for d in range(1, sizes[split]) if run % d == 0)
+    for i in range(split + 1, len(sizes)):  # whole in every slab: any size tiles them
+        while math.prod(sizes) > target and sizes[i] > 1:
+            sizes[i] = -(-sizes[i] // 2)
+    return tuple(sizes)
+
+
 def write_netcdf(path, spec, chunks: list, attrs: dict, get_part) -> None:
     """Write a sweep's map to `path` (netCDF4, CF) one chunk in memory at a time.
 
@@ -127,7 +153,7 @@ def write_netcdf(path, spec, chunks: list, attrs: dict, get_part) -> None:
                 v[:] = spec.points[k]
                 v.units, v.long_name = AXIS_UNITS[k], AXIS_LONG_NAMES[k]
             coords = "name " + " ".join(LAUNCH_AXES) + " chi0_deg"
-        chunksizes = tuple(min(s, 256) for s in spec.shape)
+        chunksizes = storage_chunks(chunks[0][2]) if chunks else None
         vars_ = {}
         for name in spec.variables:
             dtype = RESULT_VARIABLES[name][0]
