@@ -91,13 +91,18 @@ def test_sweep_with_backend_cuda_gives_the_cpu_map(tmp_path):
     except ImportError:
         pytest.skip("numba has no CUDA target here")
     env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")
-    for backend in ("cpu", "cuda"):
-        spec = tmp_path / f"{backend}.toml"
-        spec.write_text(SPEC.format(backend=backend, out=tmp_path / f"{backend}.nc"))
-        r = subprocess.run([sys.executable, "-m", "ballsurvey", "sweep", str(spec), "-q"],
+    spec = tmp_path / "map.toml"
+    spec.write_text(SPEC.format(backend="cpu", out=tmp_path / "cpu.nc"))
+    # the cuda map from the same spec file, through `sweep --backend cuda`
+    for extra in ([], ["--backend", "cuda", "-o", str(tmp_path / "cuda.nc")]):
+        r = subprocess.run([sys.executable, "-m", "ballsurvey", "sweep", str(spec), "-q", *extra],
                            capture_output=True, text=True, env=env, timeout=600)
         assert r.returncode == 0, r.stderr
     cpu, gpu = (xr.open_dataset(tmp_path / f"{b}.nc") for b in ("cpu", "cuda"))
+    # the override reached the run (the chunks re-read the spec from its text) and the record
+    assert (cpu.attrs["run_backend"], gpu.attrs["run_backend"]) == ("cpu", "cuda")
+    assert 'backend = "cuda"' in gpu.attrs["spec_toml"]
+    assert gpu.attrs["spec_digest"] != cpu.attrs["spec_digest"]
     assert np.array_equal(cpu.label.values, gpu.label.values)
     for v in ("n_sides", "turn_per_cycle_deg", "theta_period_s", "roundness", "energy_drift"):
         assert np.allclose(cpu[v].values, gpu[v].values, rtol=1e-9, equal_nan=True), v
@@ -114,3 +119,33 @@ def test_backend_spec_errors(tmp_path, run, words):
     text = SPEC.replace('backend = "{backend}"', run).format(out=tmp_path / "x.nc")
     with pytest.raises(InputError, match=words.replace("[", r"\[").replace("]", r"\]")):
         load_spec(tmp_path / "x.toml", text=text)
+
+
+def test_run_override_rewrites_the_spec_text(tmp_path):
+    """`sweep --backend`: the [run] key is replaced in the spec's text (which chunks, workers and
+    the map's provenance read), the rest of the text is kept, and the digest changes."""
+    from ballsurvey.limits import InputError
+    from ballsurvey.sweep import load_spec
+
+    text = SPEC.format(backend="cpu", out=tmp_path / "x.nc")
+    plain = load_spec(tmp_path / "x.toml", text=text)
+    over = load_spec(tmp_path / "x.toml", text=text, run={"backend": "cuda"})
+    assert (plain.backend, over.backend) == ("cpu", "cuda")
+    assert over.text.count("backend =") == 1 and 'title = "backend check"' in over.text
+    again = load_spec(tmp_path / "x.toml", text=over.text)
+    assert again.backend == "cuda" and again.digest == over.digest != plain.digest
+    # no backend line: one is added under [run]; the chunk default follows the backend
+    bare = text.replace('backend = "cpu"\n', "")
+    added = load_spec(tmp_path / "x.toml", text=bare, run={"backend": "cuda"})
+    assert added.backend == "cuda" and added.chunk == 1 << 19
+    assert load_spec(tmp_path / "x.toml", text=bare).chunk == 4096
+    # checked as if written in the file
+    with pytest.raises(InputError, match="cuda runs the fixed-step methods"):
+        dopri = bare.replace("dt = 1e-3", 'dt = 1e-3\nmethod = "dopri5"')
+        load_spec(tmp_path / "x.toml", text=dopri, run={"backend": "cuda"})
+    # a [run] written inline cannot be rewritten line by line: one line says so
+    inline = bare.replace("[run]\nT = 1.5\ndt = 1e-3\n", "").replace(
+        'title = "backend check"', 'title = "backend check"\nrun = {T = 1.5, dt = 1e-3}')
+    assert load_spec(tmp_path / "x.toml", text=inline).T == 1.5
+    with pytest.raises(InputError, match="cannot set backend from the command line"):
+        load_spec(tmp_path / "x.toml", text=inline, run={"backend": "cuda"})

@@ -330,9 +330,10 @@ dt = {dt}
 method = "{method}"
 rtol = {rtol}
 observe_every = {observe_every}
+backend = "{backend}"
 mode = "period"
 cycles = 2
-chunk = 8192
+chunk = {chunk}
 [output]
 file = "{out}"
 variables = ["label", "n_sides"]
@@ -347,20 +348,23 @@ HEADLINE_RUN = {"rk4": dict(dt=2e-4, observe_every=4, rtol=1e-9),
 
 def run_headline(n: int = 100, T: float = 20.0, method: str = "dop853", dt: float | None = None,
                  observe_every: int | None = None, rtol: float | None = None, sample: int = 1000,
-                 sample_dt: float = 1e-4, out_file=None, out=print, seed: int = 0) -> dict:
+                 sample_dt: float = 1e-4, out_file=None, out=print, seed: int = 0,
+                 backend: str = "cpu") -> dict:
     """An n^3 (theta0, chidot0, phidot0) map at T in period mode: wall time and peak memory, then
     label agreement on `sample` random launches against full fixed-step integration to T at
     sample_dt (the accuracy report shows every label converged from 1e-3 s down). method, dt,
-    observe_every, rtol: the map's run settings (None: HEADLINE_RUN's for the method)."""
+    observe_every, rtol: the map's run settings (None: HEADLINE_RUN's for the method). backend:
+    where the map's kernel runs (cuda: fixed-step methods; the reference stays on the CPU)."""
     import resource
     import tempfile
     from pathlib import Path
 
     import xarray as xr
 
-    from .compose import classify, run_launches
+    from .compose import TIMES, classify, run_launches
     from .sweep import load_spec, run_sweep
     from .sweep.engine import launch_table
+    from .sweep.spec import DEFAULT_CHUNK
 
     run = dict(HEADLINE_RUN[method])
     run.update({k: v for k, v in dict(dt=dt, observe_every=observe_every, rtol=rtol).items()
@@ -368,17 +372,22 @@ def run_headline(n: int = 100, T: float = 20.0, method: str = "dop853", dt: floa
     dt = run["dt"]
     with tempfile.TemporaryDirectory() as tmp:
         target = Path(out_file) if out_file else Path(tmp) / "headline.nc"
-        text = HEADLINE_SPEC.format(n=n, T=T, out=target, method=method, **run)
+        chunk = 8192 if backend == "cpu" else DEFAULT_CHUNK[backend]
+        text = HEADLINE_SPEC.format(n=n, T=T, out=target, method=method, backend=backend,
+                                    chunk=chunk, **run)
         path = Path(tmp) / "headline.toml"
         path.write_text(text)
         spec = load_spec(path)
         warm = load_spec(path, text=HEADLINE_SPEC.format(n=2, T=dt * 8, method=method,
+                                                         backend=backend, chunk=chunk,
                                                          out=Path(tmp) / "w.nc", **run))
         run_sweep(warm, command="bench warm-up", progress=False)
+        TIMES.clear()
         ru0 = resource.getrusage(resource.RUSAGE_SELF)
         t0 = time.perf_counter()
         run_sweep(spec, command="bench --headline", progress=None, force=True)
         wall = time.perf_counter() - t0
+        times = dict(TIMES)
         ru1 = resource.getrusage(resource.RUSAGE_SELF)
         cpu = (ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime)
         peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
@@ -401,17 +410,21 @@ def run_headline(n: int = 100, T: float = 20.0, method: str = "dop853", dt: floa
            else f"{method} at rtol {run['rtol']:g}")
     out(f"ballsurvey headline: {n}^3 = {n ** 3} launches, T = {T} s, period mode (2 cycles), "
         f"{how}, observer every {dt * run['observe_every']:g} s, "
-        f"{numba.get_num_threads()} numba threads")
+        f"{numba.get_num_threads()} numba threads" + (", on the GPU" if backend == "cuda" else ""))
     threads = numba.get_num_threads()
     out(f"  wall time {wall:.1f} s ({n ** 3 / wall:.0f} launches/s), CPU use "
         f"{100 * cpu / wall:.0f} % ({cpu / wall / threads:.0%} of {threads} threads), "
         f"peak memory {peak_mb:.0f} MB")
+    parts = ", ".join(f"{k} {v:.1f} s" for k, v in times.items())
+    out(f"    of which {parts}, the rest (launch tables, parts, netCDF) "
+        f"{wall - sum(times.values()):.1f} s")
     out(f"  labels agree with full integration (T = {T} s, dt = {sample_dt} s) on {len(pick)} "
         f"random launches: {100 * agree:.1f} %")
     out(f"  full integration of the whole map would take about {est_full / 60:.0f} min "
         f"({est_full / wall:.0f}x)")
     return {"wall_s": wall, "cpu_s": cpu, "peak_mb": peak_mb, "agreement": agree,
-            "full_estimate_s": est_full, "method": method, **run}
+            "full_estimate_s": est_full, "method": method, "backend": backend, "times": times,
+            **run}
 
 
 def run_period_bench(n: int = 40, T: float = 20.0, dt: float = 1e-4, out=print) -> dict:

@@ -73,12 +73,15 @@ def compute_chunk(spec_text: str, spec_source: str, lo: int, hi: int, parallel: 
     done: results of the chunk's first launches (from an interrupted run), not computed again.
     on_unit(n): called after each unit with its number of launches. unit: a fixed unit size
     (default: adaptive, about unit_s seconds each). Ctrl-C raises ChunkInterrupted with the
-    launches finished so far."""
+    launches finished so far. On the GPU (backend cuda) the chunk is one unit: a kernel launch
+    needs many launches to fill the card, and lasts as long as its slowest launch."""
     spec = load_spec(spec_source, text=spec_text)
     pieces = [done] if done else []
     a = lo + (n_launches(done) if done else 0)
     threads = _threads(parallel)
     smallest = min(hi - lo, 4 * threads)
+    if spec.backend == "cuda":
+        unit = hi - lo
     size = unit or smallest
     try:
         while a < hi:

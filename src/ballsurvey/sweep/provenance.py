@@ -38,7 +38,7 @@ def global_attrs(spec: Spec, command: str) -> dict:
         "run_T_s": spec.T, "run_dt_s_requested": spec.dt, "run_dt_s": spec.T / n_steps(spec),
         "run_method": spec.method, "run_observe_every": spec.observe_every,
         "run_rtol": spec.rtol, "run_atol": spec.atol, "run_mode": spec.mode,
-        "run_cycles": spec.cycles,
+        "run_cycles": spec.cycles, "run_backend": spec.backend,
     }
     for k, v in spec.ball.as_dict().items():
         unit = {"a": "m", "c": "m", "M": "kg", "A": "kg m2", "B": "kg m2", "g": "m s-2",

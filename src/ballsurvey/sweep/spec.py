@@ -17,6 +17,7 @@ import hashlib
 import itertools
 import json
 import math
+import re
 import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -38,6 +39,10 @@ BALL_KEYS = ("preset", "a", "c", "M", "A", "B", "g", "cut_height")
 RUN_KEYS = ("T", "dt", "method", "rtol", "atol", "mode", "cycles", "observe_every", "block",
             "chunk", "backend")
 BACKENDS = ("cpu", "cuda")
+#: launches per chunk when [run] chunk is not given: a chunk is the unit of saving and of dask
+#: tasks on the CPU; on the GPU it is also one kernel launch, which needs about 1e5 threads or
+#: more to fill a card (an H100 holds 132 x 2048)
+DEFAULT_CHUNK = {"cpu": 4096, "cuda": 1 << 19}
 OUTPUT_KEYS = ("file", "variables", "compression")
 POINT_KEYS = ("name",) + LAUNCH_AXES + ("chi0_deg",)
 TOP_KEYS = ("title", "ball", "launch", "points", "run", "classify", "output")
@@ -186,8 +191,44 @@ def _check_tilts(src, where, theta0_deg, balls_flat_deg):
         _err(src, where, problem)
 
 
-def load_spec(path, *, text: str | None = None) -> Spec:
-    """Read and validate a spec file (or its `text`). Raises SpecError (one line) on any problem."""
+def _override_run(src, text: str, doc: dict, run: dict) -> tuple[str, dict]:
+    """The spec's text with [run] keys replaced by `run` (scalars), and its parsed document.
+
+    The text itself is rewritten (the key's line replaced, or a line added under [run]), so the
+    override travels wherever the spec's text goes: to dask workers, into the parts' manifest
+    and into the map's provenance. The result is parsed again and must give the merged table."""
+    lines = text.splitlines()
+    head = [i for i, ln in enumerate(lines) if re.fullmatch(r"\s*\[run\]\s*(#.*)?", ln)]
+    want = {**doc.get("run", {}), **run} if isinstance(doc.get("run", {}), dict) else None
+    if len(head) == 1 and want is not None:
+        end = next((i for i in range(head[0] + 1, len(lines))
+                    if re.match(r"\s*\[", lines[i])), len(lines))
+        for key, value in run.items():
+            new = f"{key} = {json.dumps(value)}  # from the command line"
+            at = [i for i in range(head[0] + 1, end)
+                  if re.match(rf"\s*{re.escape(key)}\s*=", lines[i])]
+            if at:
+                lines[at[0]] = new
+            else:
+                lines.insert(head[0] + 1, new)
+                end += 1
+        new_text = "\n".join(lines) + "\n"
+        try:
+            new_doc = tomllib.loads(new_text)
+        except tomllib.TOMLDecodeError:
+            new_doc = None
+        if new_doc is not None and new_doc.get("run") == want:
+            return new_text, new_doc
+    keys = ", ".join(run)
+    _err(src, "[run]", f"cannot set {keys} from the command line: write them in a [run] table "
+                       "of the spec (one 'key = value' line each)")
+
+
+def load_spec(path, *, text: str | None = None, run: dict | None = None) -> Spec:
+    """Read and validate a spec file (or its `text`). Raises SpecError (one line) on any problem.
+    run: [run] keys that replace the file's (a command-line override, e.g. {"backend": "cuda"}):
+    checked as if written there, and part of the digest, so a map made with them is not taken
+    for the file's own."""
     src = str(path)
     if text is None:
         try:
@@ -198,6 +239,8 @@ def load_spec(path, *, text: str | None = None) -> Spec:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SpecError(f"{src}: not valid TOML: {exc}") from None
+    if run:
+        text, doc = _override_run(src, text, doc, run)
     _unknown(src, "", doc, TOP_KEYS)
     for sec in ("ball", "launch", "run", "classify", "output"):
         if sec in doc and not isinstance(doc[sec], dict):
@@ -294,7 +337,8 @@ def load_spec(path, *, text: str | None = None) -> Spec:
                             integer=True, lo=1, hi=limits.MAX_OBSERVE_EVERY)
     block = _number(src, "[run] block", run.get("block", 64), integer=True, lo=1,
                     hi=limits.MAX_BLOCK)
-    chunk = _number(src, "[run] chunk", run.get("chunk", 4096), integer=True, lo=1)
+    chunk = _number(src, "[run] chunk", run.get("chunk", DEFAULT_CHUNK[backend]), integer=True,
+                    lo=1)
     shape = (tuple(len(v) for v in axes.values()) if kind == "grid"
              else (len(points["name"]),))
     _limit(src, limits.chunk_plan, shape, chunk, "[run] chunk")
