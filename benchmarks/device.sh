@@ -4,6 +4,8 @@
 #   bash benchmarks/device.sh gpu     # bench --backend cuda, shipped maps on both backends, headline
 #   bash benchmarks/device.sh map     # the 1e8-launch map (sweeps/gpu-1e8.toml): wall and peak memory
 #   bash benchmarks/device.sh cpu     # 16-core scaling of the square map, bench on 2 and 16 cores
+#   bash benchmarks/device.sh headline   # bench --headline --backend cuda; sweep --backend cuda
+#   (also: map-n N, an N^3 map of the same box; observer, the kernel with and without samples)
 #
 # The machine has its own Python with numba, numba-cuda, numpy, xarray, pandas and matplotlib and
 # no package index: netCDF4, cftime and dask come as wheels in .whl/ (README "Measured on a GPU").
@@ -46,6 +48,10 @@ log="$out/$stage.log"
     observer)  # the CUDA kernel with and without the observer (a sample every 4 steps, or none)
         python3 -m ballsurvey bench --backend cuda --launches 1048576 --observe-every 4
         python3 -m ballsurvey bench --backend cuda --launches 1048576 --observe-every 1000000 ;;
+    headline)  # the CLI's own GPU commands: the 1e6-launch headline, and a spec run with --backend
+        timeout 200 python3 -m ballsurvey bench --headline --backend cuda
+        timeout 100 python3 -m ballsurvey sweep sweeps/square-map.toml --backend cuda \
+            -o /tmp/square-cuda.nc --force -v --no-progress ;;
     map-resume)
         python3 benchmarks/peak.py timeout -s INT 560 python3 -m ballsurvey sweep \
             sweeps/gpu-1e8.toml -o /tmp/gpu-1e8.nc --no-progress -v --resume
