@@ -36,8 +36,8 @@ def main(argv=None):
                 "n_sides": np.round(rng.uniform(2.0, 8.0, m), 3)}
 
     sizes = (tuple(min(s, 256) for s in spec.shape) if args.old
-             else store.storage_chunks(chunks[0][2]))
-    store.storage_chunks = lambda slab, target=0: sizes
+             else store.storage_chunks(chunks[0][2], spec.shape))
+    store.storage_chunks = lambda *args, **kw: sizes
     with tempfile.TemporaryDirectory() as tmp:
         t = time.perf_counter()
         store.write_netcdf(Path(tmp) / "map.nc", spec, chunks, {}, get_part)

@@ -143,6 +143,25 @@ def test_run_override_rewrites_the_spec_text(tmp_path):
     with pytest.raises(InputError, match="cuda runs the fixed-step methods"):
         dopri = bare.replace("dt = 1e-3", 'dt = 1e-3\nmethod = "dopri5"')
         load_spec(tmp_path / "x.toml", text=dopri, run={"backend": "cuda"})
+    # a value already in effect changes nothing: same text, same digest (a map made without the
+    # flag stays up to date, its parts resumable)
+    same = load_spec(tmp_path / "x.toml", text=bare, run={"backend": "cpu"})
+    assert same.text == bare and same.digest == load_spec(tmp_path / "x.toml", text=bare).digest
+    # only newlines end lines: a U+2028 inside a comment must not turn the rest into a key
+    sneaky = bare.replace('title = "backend check"',
+                          'title = "backend check"\n# heading\u2028chi0_deg = 90.0')
+    assert load_spec(tmp_path / "x.toml", text=sneaky).chi0_deg == 0.0
+    assert load_spec(tmp_path / "x.toml", text=sneaky, run={"backend": "cuda"}).chi0_deg == 0.0
+    # a "[run]" line inside a multi-line string is not the table: the rewrite is refused
+    fake = bare.replace('title = "backend check"', 'title = """x\n[run]\ny"""').replace(
+        "[run]\nT", "[ run ]\nT")
+    assert load_spec(tmp_path / "x.toml", text=fake).title == "x\n[run]\ny"
+    with pytest.raises(InputError, match="cannot set backend from the command line"):
+        load_spec(tmp_path / "x.toml", text=fake, run={"backend": "cuda"})
+    # the spec's own errors come first
+    with pytest.raises(InputError, match=r"\[run\] T"):
+        load_spec(tmp_path / "x.toml", text=bare.replace("T = 1.5", "T = nan"),
+                  run={"backend": "cuda"})
     # a [run] written inline cannot be rewritten line by line: one line says so
     inline = bare.replace("[run]\nT = 1.5\ndt = 1e-3\n", "").replace(
         'title = "backend check"', 'title = "backend check"\nrun = {T = 1.5, dt = 1e-3}')

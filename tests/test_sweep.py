@@ -55,23 +55,51 @@ def test_plan_chunks_cover_the_grid_once():
 
 def test_storage_chunks_lie_inside_one_slab_each():
     """netCDF storage chunks never straddle two write slabs (a straddled chunk is decompressed and
-    compressed again at each write: the 1e8-launch map spent minutes there): every slab starts
-    and ends on storage-chunk boundaries (or the axis end), and a chunk holds at most the
-    target's values."""
+    compressed again at each write: the 1e8-launch map spent minutes there) where the slabs' run
+    has a divisor near the even split: every slab then starts and ends on storage-chunk
+    boundaries (or the axis end). A run without one (prime) gets the even split, each chunk
+    meeting at most two slabs, not slivers. Never more than the target's values a chunk."""
+    import math
+
     from ballsurvey.store import storage_chunks
 
-    for shape, chunk, target in [((464, 1, 464, 464), 1 << 20, 1 << 20),
-                                 ((100, 1, 100, 100), 8192, 1 << 20), ((3000, 3000), 1 << 22, 1 << 20),
-                                 ((41, 1, 45, 1), 4096, 1 << 20), ((4, 3, 2, 1), 5, 4),
-                                 ((97, 89), 1000, 64), ((600,), 4096, 100), ((7,), 3, 2)]:
+    def slabs_met(shape, plan, sizes):
+        """Most slabs one storage chunk meets (by the flat ranges of the chunks' cells)."""
+        owner = np.empty(shape, dtype=np.int64)
+        for k, (_lo, _hi, slab) in enumerate(plan):
+            owner[slab] = k
+        grid = [range(0, s, c) for s, c in zip(shape, sizes)]
+        most = 0
+        for corner in np.ndindex(*[len(g) for g in grid]):
+            box = tuple(slice(g[j], g[j] + c) for g, j, c in zip(grid, corner, sizes))
+            most = max(most, len(np.unique(owner[box])))
+        return most
+
+    aligned = [((464, 1, 464, 464), 1 << 20, 1 << 20), ((100, 1, 100, 100), 8192, 1 << 20),
+               ((3000, 3000), 1 << 22, 1 << 20), ((41, 1, 45, 1), 4096, 1 << 20),
+               ((4, 3, 2, 1), 5, 4), ((97, 89), 1000, 64), ((600,), 4096, 100), ((7,), 3, 2),
+               ((1031, 1031), 2_000_000, 1 << 16)]
+    for shape, chunk, target in aligned:
         plan = plan_chunks(shape, chunk)
-        sizes = storage_chunks(plan[0][2], target)
+        sizes = storage_chunks(plan[0][2], shape, target)
         assert len(sizes) == len(shape) and all(1 <= c <= s for c, s in zip(sizes, shape))
-        assert int(np.prod(sizes)) <= target, (shape, sizes)
+        assert math.prod(sizes) <= target, (shape, sizes)
         for _lo, _hi, slab in plan:
             for ax, (s, c) in enumerate(zip(slab, sizes)):
                 a, b = (s, s + 1) if isinstance(s, int) else (s.start, s.stop)
                 assert a % c == 0 and (b % c == 0 or b == shape[ax]), (shape, chunk, slab, sizes)
+    # one slab along the split axis: not cut to single rows for want of a divisor
+    assert storage_chunks(plan_chunks((1031, 1031), 2_000_000)[0][2], (1031, 1031),
+                          1 << 16)[0] > 1
+    # a prime run (1009 rows of 7 a slab): the even split, at most two slabs a chunk
+    shape, chunk, target = (2000, 7), 1009 * 7, 7 * 300
+    plan = plan_chunks(shape, chunk)
+    sizes = storage_chunks(plan[0][2], shape, target)
+    assert math.prod(sizes) <= target and sizes[0] >= 150, sizes
+    assert slabs_met(shape, plan, sizes) <= 2
+    for shape, chunk, target in aligned[4:8]:
+        plan = plan_chunks(shape, chunk)
+        assert slabs_met(shape, plan, storage_chunks(plan[0][2], shape, target)) == 1
 
 
 def test_sweep_writes_a_cf_file_that_xarray_reads(tmp_path):

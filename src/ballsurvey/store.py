@@ -94,21 +94,31 @@ def decode_label(codes) -> np.ndarray:
 STORAGE_CHUNK_VALUES = 1 << 20
 
 
-def storage_chunks(slab, target: int = STORAGE_CHUNK_VALUES) -> tuple:
-    """The netCDF storage-chunk shape for a map written slab by slab (`sweep.plan_chunks`): each
-    storage chunk lies inside one slab, so it is compressed and written once, and it holds at
-    most `target` values.
+def storage_chunks(slab, shape, target: int = STORAGE_CHUNK_VALUES) -> tuple:
+    """The netCDF storage-chunk shape for a map of `shape` written slab by slab
+    (`sweep.plan_chunks`; `slab` its first): at most `target` values, and each storage chunk
+    inside one slab, so it is compressed and written once.
 
     A slab is single indices on the outer axes, a run of indices on its split axis (every slab's
     run starts at a multiple of the first's) and whole inner axes. Storage chunks that straddled
-    two slabs were read back, decompressed and compressed again at every write that touched
-    them: a 1e8-launch map, whose 134 MB chunks each spanned 4 slabs, spent minutes there."""
+    slabs were read back, decompressed and compressed again at every write that touched them:
+    a 1e8-launch map, whose 134 MB chunks each spanned 4 slabs, spent minutes there. Along the
+    split axis the size is a divisor of the run; where the run has no divisor near the even
+    split (a prime run, say), the even split is taken, and a storage chunk then meets at most
+    two slabs rather than shrinking to a sliver."""
     sizes = [1 if isinstance(s, (int, np.integer)) else s.stop - s.start for s in slab]
     split = next((i for i, s in enumerate(slab) if not isinstance(s, (int, np.integer))), 0)
     run = sizes[split]
-    while math.prod(sizes) > target and sizes[split] > 1:  # a divisor of the run
-        sizes[split] = max(d for d in range(1, sizes[split]) if run % d == 0)
-    for i in range(split + 1, len(sizes)):  # whole in every slab: any size tiles them
+    whole = list(range(split + 1, len(sizes)))  # axes whole in every slab: any size tiles them
+    if run >= int(shape[split]):  # one slab along the split axis too
+        whole.insert(0, split)
+    else:
+        pieces = -(-math.prod(sizes) // target)
+        if pieces > 1:
+            even = -(-run // pieces)
+            div = next(d for d in range(min(even, run), 0, -1) if run % d == 0)
+            sizes[split] = div if 2 * div >= even else even
+    for i in whole:
         while math.prod(sizes) > target and sizes[i] > 1:
             sizes[i] = -(-sizes[i] // 2)
     return tuple(sizes)
@@ -153,7 +163,7 @@ def write_netcdf(path, spec, chunks: list, attrs: dict, get_part) -> None:
                 v[:] = spec.points[k]
                 v.units, v.long_name = AXIS_UNITS[k], AXIS_LONG_NAMES[k]
             coords = "name " + " ".join(LAUNCH_AXES) + " chi0_deg"
-        chunksizes = storage_chunks(chunks[0][2]) if chunks else None
+        chunksizes = storage_chunks(chunks[0][2], spec.shape) if chunks else None
         vars_ = {}
         for name in spec.variables:
             dtype = RESULT_VARIABLES[name][0]

@@ -191,16 +191,28 @@ def _check_tilts(src, where, theta0_deg, balls_flat_deg):
         _err(src, where, problem)
 
 
+#: [run] keys a command line may set, with the value a spec that does not name them runs with
+RUN_OVERRIDE_DEFAULTS = {"backend": "cpu"}
+
+
 def _override_run(src, text: str, doc: dict, run: dict) -> tuple[str, dict]:
     """The spec's text with [run] keys replaced by `run` (scalars), and its parsed document.
 
     The text itself is rewritten (the key's line replaced, or a line added under [run]), so the
     override travels wherever the spec's text goes: to dask workers, into the parts' manifest
-    and into the map's provenance. The result is parsed again and must give the merged table."""
-    lines = text.splitlines()
+    and into the map's provenance. A value already in effect changes nothing, not even the
+    digest. The rewritten text is parsed again and must give the same document with the merged
+    [run] table; anything else is refused with one line."""
+    table = doc.get("run", {})
+    if not isinstance(table, dict):
+        return text, doc  # validation says what is wrong with it
+    unset = object()
+    run = {k: v for k, v in run.items() if table.get(k, RUN_OVERRIDE_DEFAULTS.get(k, unset)) != v}
+    if not run:
+        return text, doc
+    lines = text.split("\n")  # only newlines: TOML strings and comments may hold U+2028 etc.
     head = [i for i, ln in enumerate(lines) if re.fullmatch(r"\s*\[run\]\s*(#.*)?", ln)]
-    want = {**doc.get("run", {}), **run} if isinstance(doc.get("run", {}), dict) else None
-    if len(head) == 1 and want is not None:
+    if len(head) == 1:
         end = next((i for i in range(head[0] + 1, len(lines))
                     if re.match(r"\s*\[", lines[i])), len(lines))
         for key, value in run.items():
@@ -212,12 +224,16 @@ def _override_run(src, text: str, doc: dict, run: dict) -> tuple[str, dict]:
             else:
                 lines.insert(head[0] + 1, new)
                 end += 1
-        new_text = "\n".join(lines) + "\n"
+        new_text = "\n".join(lines)
         try:
             new_doc = tomllib.loads(new_text)
         except tomllib.TOMLDecodeError:
             new_doc = None
-        if new_doc is not None and new_doc.get("run") == want:
+
+        def canon(d):  # NaN equals NaN here: validation, not this check, refuses it
+            return json.dumps(d, sort_keys=True, default=str)
+
+        if new_doc is not None and canon(new_doc) == canon({**doc, "run": {**table, **run}}):
             return new_text, new_doc
     keys = ", ".join(run)
     _err(src, "[run]", f"cannot set {keys} from the command line: write them in a [run] table "
