@@ -104,6 +104,11 @@ def test_sweep_with_backend_cuda_gives_the_cpu_map(tmp_path):
     assert 'backend = "cuda"' in gpu.attrs["spec_toml"]
     assert gpu.attrs["spec_digest"] != cpu.attrs["spec_digest"]
     assert np.array_equal(cpu.label.values, gpu.label.values)
+    # the same spec without the flag on the cuda map: refused, naming the flag that made it
+    r = subprocess.run([sys.executable, "-m", "ballsurvey", "sweep", str(spec), "-q", "-o",
+                        str(tmp_path / "cuda.nc")], capture_output=True, text=True, env=env,
+                       timeout=600)
+    assert r.returncode == 2 and "it is this spec run with --backend cuda" in r.stderr, r.stderr
     for v in ("n_sides", "turn_per_cycle_deg", "theta_period_s", "roundness", "energy_drift"):
         assert np.allclose(cpu[v].values, gpu[v].values, rtol=1e-9, equal_nan=True), v
 

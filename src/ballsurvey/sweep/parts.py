@@ -262,6 +262,23 @@ def _existing_digest(path: Path) -> str | None:
         return None
 
 
+def _backend_hint(spec: Spec, digest) -> str:
+    """' (it is this spec run with --backend X)' when `digest` is this spec's on another backend,
+    else ''."""
+    from .spec import BACKENDS, load_spec
+
+    for backend in BACKENDS:
+        if backend == spec.backend:
+            continue
+        try:
+            other = load_spec(spec.source, text=spec.text, run={"backend": backend})
+        except InputError:
+            continue
+        if digest is not None and other.digest == digest:
+            return f" (it is this spec run with --backend {backend})"
+    return ""
+
+
 def output_is_current(spec: Spec) -> bool:
     """True when the spec's output file exists and was made by this same spec."""
     return spec.output.is_file() and _existing_digest(spec.output) == spec.digest
@@ -316,7 +333,9 @@ def prepare_output(spec: Spec, *, resume: bool, force: bool, notice=None) -> tup
     if out.exists() and not force:
         if output_is_current(spec):
             raise UpToDate(f"{out} is up to date (made by this spec); --force recomputes it")
-        raise OutputRefused(f"{out} exists, made by another spec; use --force to overwrite it")
+        hint = _backend_hint(spec, _existing_digest(out))
+        raise OutputRefused(f"{out} exists, made by another spec{hint}; use --force to overwrite "
+                            "it")
     _clean_leftovers(out, parts)
     if parts.exists():
         if force:
@@ -332,8 +351,9 @@ def prepare_output(spec: Spec, *, resume: bool, force: bool, notice=None) -> tup
             except (OSError, ValueError):
                 raise OutputRefused(f"{parts} has no readable manifest; use --force") from None
             if man.get("spec_digest") != spec.digest:
-                raise OutputRefused(f"{parts} belongs to a different spec; refusing to mix "
-                                      "results (use --force to discard it)")
+                hint = _backend_hint(spec, man.get("spec_digest"))
+                raise OutputRefused(f"{parts} belongs to a different spec{hint}; refusing to mix "
+                                    "results (use --force to discard it)")
             if man.get("format") != PART_FORMAT or not isinstance(man.get("chunk"), int):
                 raise OutputRefused(f"{parts} has no chunk plan (made by an older ballsurvey); "
                                       "use --force to start over")
