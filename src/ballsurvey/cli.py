@@ -72,7 +72,9 @@ def _cmd_bench(args):
 
         method = args.method or ("rk4" if args.backend == "cuda" else "dop853")
         if args.backend == "cuda":
-            if method not in ("rk4",):
+            from .integrate.tableaus import FIXED_STEP
+
+            if method not in FIXED_STEP:
                 raise InputError(f"--headline --backend cuda runs rk4, not {method}")
             _check_cuda()
         run_headline(n=args.headline, T=args.T, method=method, backend=args.backend)

@@ -70,16 +70,21 @@ def needs_fallback(res: oc.Result, thresholds: Thresholds = Thresholds()) -> np.
     return (res.formulation == oc.EULER_ANGLES) & (chart | (bad_num & (tilt > NEAR_SINGULAR_THETA)))
 
 
+def _fixed_frame(y0, params, T_nd, *, parallel, stop_after=0) -> oc.Result:
+    """The fallback's integration: adaptive, in the fixed frame, observed."""
+    return integrate_adaptive(y0, params, T_nd, FALLBACK_RTOL, FALLBACK_ATOL, observer=OBSERVER,
+                              n_slots=N_OBS, fixed_frame=True, h_init=FALLBACK_H_INIT,
+                              parallel=parallel, stop_after=stop_after)
+
+
 def fixed_frame_fallback(y0, params, T_nd, res: oc.Result, *, thresholds=Thresholds(),
                          parallel=True, stop_after=0) -> np.ndarray:
     """Re-run in the fixed frame the launches `needs_fallback` names, in place in `res`; returns
     their indices."""
     bad = np.flatnonzero(needs_fallback(res, thresholds))
     if bad.size:
-        r2 = integrate_adaptive(y0[:, bad], params[:, bad], T_nd, FALLBACK_RTOL, FALLBACK_ATOL,
-                                observer=OBSERVER, n_slots=N_OBS, fixed_frame=True,
-                                h_init=FALLBACK_H_INIT, parallel=parallel and bad.size > 1,
-                                stop_after=stop_after)
+        r2 = _fixed_frame(y0[:, bad], params[:, bad], T_nd, parallel=parallel and bad.size > 1,
+                          stop_after=stop_after)
         for name in ("obs", "outcome", "t_stop", "formulation", "n_steps"):
             getattr(res, name)[..., bad] = getattr(r2, name)
         res.y_end[:, bad] = r2.y_end
@@ -95,9 +100,7 @@ def warm_fallback(params_col) -> None:
     y0 = fast_state(0.0, 0.0, np.radians([10.0, 20.0]), 0.0, 0.0, 0.0, 1.0, -1.0)
     p = np.repeat(np.asarray(params_col, dtype=float).reshape(3, 1), 2, axis=1)
     for parallel in (True, False):
-        integrate_adaptive(y0, p, 1e-3, FALLBACK_RTOL, FALLBACK_ATOL, observer=OBSERVER,
-                           n_slots=N_OBS, fixed_frame=True, h_init=FALLBACK_H_INIT,
-                           parallel=parallel)
+        _fixed_frame(y0, p, 1e-3, parallel=parallel)
 
 
 def run_launches(y0, params, plan: StepPlan, method="rk4", *, rtol=1e-9, atol=1e-12, block=64,

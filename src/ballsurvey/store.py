@@ -116,7 +116,7 @@ def storage_chunks(slab, shape, target: int = STORAGE_CHUNK_VALUES) -> tuple:
         pieces = -(-math.prod(sizes) // target)
         if pieces > 1:
             even = -(-run // pieces)
-            div = next(d for d in range(min(even, run), 0, -1) if run % d == 0)
+            div = next(d for d in range(even, 0, -1) if run % d == 0)
             sizes[split] = div if 2 * div >= even else even
     for i in whole:
         while math.prod(sizes) > target and sizes[i] > 1:

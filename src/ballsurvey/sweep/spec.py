@@ -338,7 +338,7 @@ def load_spec(path, *, text: str | None = None, run: dict | None = None) -> Spec
         _err(src, "[run] method", f"unknown method {method!r}; known: {', '.join(MAP_METHODS)}")
     rtol, atol = _limit(src, limits.tolerances, run.get("rtol", 1e-9), run.get("atol", 1e-12),
                         "[run] rtol", "[run] atol")
-    backend = run.get("backend", "cpu")
+    backend = run.get("backend", RUN_OVERRIDE_DEFAULTS["backend"])
     if backend not in BACKENDS:
         _err(src, "[run] backend", f"must be one of {', '.join(BACKENDS)}, got {backend!r}")
     if backend == "cuda" and method not in FIXED_STEP:
