@@ -493,3 +493,29 @@ def test_no_workers_left_ends_with_one_line_and_keeps_parts(tmp_path, reference)
     assert (parts / "chunk-000000.npz").exists() and not spec.output.exists()
     assert not lock_path(spec.output).exists()
     same_map(run_sweep(spec, resume=True, command="test"), reference)
+
+
+def test_ctrl_c_while_a_part_is_written_counts_only_what_is_on_disk(tmp_path, reference,
+                                                                     monkeypatch):
+    """Ctrl-C arriving as chunk 1's part is being written: the write is finished first, so the
+    run says it kept 4 launches and both parts are on disk (it said 4 with one part there),
+    and --resume gives the uninterrupted map."""
+    import signal
+
+    spec = tiny_spec(tmp_path, "w.nc")
+    write = engine._write_part
+
+    def write_part(parts, k, *args):
+        if k == 1:
+            os.kill(os.getpid(), signal.SIGINT)  # delivered at once, inside the write
+        return write(parts, k, *args)
+
+    monkeypatch.setattr(engine, "_write_part", write_part)
+    with pytest.raises(engine.SweepInterrupted) as exc:
+        run_sweep(spec, command="test")
+    parts = parts_dir(spec.output)
+    on_disk = sorted(p.name for p in parts.glob("chunk-*.npz"))
+    assert on_disk == ["chunk-000000.npz", "chunk-000001.npz"], on_disk
+    assert exc.value.kept == 4 and not list(parts.glob("partial-*"))
+    monkeypatch.setattr(engine, "_write_part", write)
+    same_map(run_sweep(spec, resume=True, command="test"), reference)

@@ -151,6 +151,8 @@ def _cmd_sweep(args):
     if verbosity >= 1:
         print(f"ballsurvey sweep: {spec.n_launches} launches ({' x '.join(map(str, spec.shape))})"
               f" -> {spec.output}", file=sys.stderr, flush=True)
+    if (args.scheduler or args.workers) and verbosity < 2:
+        _quiet_dask()
     try:
         with dask_client(args.scheduler, args.workers, wait_s) as client:
             written = run_sweep(spec, resume=args.resume, force=args.force, client=client,
@@ -175,6 +177,25 @@ def _cmd_sweep(args):
         comp = f"; {comp:.1f} s of it compiling kernels at first call" if comp >= 0.05 else ""
         print(f"  where the time went: {', '.join(parts)}, the rest (plan, parts, writing) "
               f"{rest:.1f} s{comp}", file=sys.stderr)
+
+
+def _quiet_dask() -> None:
+    """dask's warnings in this process off (-vv keeps them): what they say that matters (a lost
+    worker or scheduler) ends the run with one line of ours. "distributed" sets its loggers'
+    levels when imported, so it is imported first. asyncio reports an abandoned fetch of a
+    lost worker's result when the client closes ("Task exception was never retrieved"), and
+    tornado a traceback from inside distributed when Ctrl-C lands in one of its waits: both
+    after our line, and neither says anything to act on."""
+    import logging
+
+    import distributed  # noqa: F401
+
+    quiet = {"distributed": logging.ERROR, "tornado": logging.CRITICAL,
+             "asyncio": logging.CRITICAL}
+    for name in list(logging.root.manager.loggerDict) + list(quiet):
+        top = name.split(".")[0]
+        if top in quiet:  # distributed's config sets some of them one by one
+            logging.getLogger(name).setLevel(quiet[top])
 
 
 def sweep_summary(path, n_launches: int, report: dict) -> str:

@@ -158,6 +158,26 @@ class _NoSigint:
             signal.signal(signal.SIGINT, self.old)
 
 
+class _DeferSigint:
+    """Hold a Ctrl-C back while a part is written and counted (main thread only), then raise
+    it: a part cut short is not on disk, but its launches were counted as kept."""
+
+    def __enter__(self):
+        self.old, self.hit = None, False
+        if threading.current_thread() is threading.main_thread():
+            self.old = signal.signal(signal.SIGINT, self._hold)
+        return self
+
+    def _hold(self, signum, frame):
+        self.hit = True
+
+    def __exit__(self, *exc):
+        if self.old is not None:
+            signal.signal(signal.SIGINT, self.old)
+        if self.hit and exc[0] is None:
+            raise KeyboardInterrupt
+
+
 def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=None,
               progress: bool | None = None, command: str = "", on_chunk=None, notice=None,
               dask_wait_s: float = DASK_WAIT_S, on_unit=None, report: dict | None = None) -> Path:
@@ -219,9 +239,10 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
 
         def finished(k, result):
             lo, hi, _ = chunks[k]
-            _write_part(parts, k, lo, hi, spec.digest, result)
-            remove_partial(parts, k)
-            saved.add(k)
+            with _DeferSigint():
+                _write_part(parts, k, lo, hi, spec.digest, result)
+                remove_partial(parts, k)
+                saved.add(k)
             if on_chunk is not None:
                 on_chunk(k)
 

@@ -6,6 +6,7 @@ running scheduler or starts a local cluster. Both call `compute_chunk` on ranges
 launches, and every launch's arithmetic is its own, so they give identical files."""
 from __future__ import annotations
 
+import logging
 import time
 from contextlib import contextmanager
 
@@ -20,6 +21,8 @@ DASK_WAIT_S = 30.0
 #: while another finishes a long task), and the fewest launches a task holds
 TASKS_PER_THREAD = 4
 MIN_TASK_LAUNCHES = 64
+#: how often (s) a wait for a task's result looks at the cluster's health
+POLL_S = 1.0
 
 
 def task_ranges(chunks: list, todo: list, threads: int, start: dict | None = None) -> dict:
@@ -114,6 +117,35 @@ def run_dask(client, spec: Spec, chunks: list, todo: list, finished, wait_s: flo
                 out[k] = concat(pieces, spec.variables)
         return out
 
+    def cluster_check(since):
+        """None while the cluster has a scheduler and workers; else when it was first seen
+        without (since, or now); RunError once that is longer ago than wait_s."""
+        try:
+            healthy = client.status == "running" and len(client.nthreads()) > 0
+        except lost:
+            healthy = False
+        if healthy:
+            return None
+        if since is None:
+            return time.monotonic()
+        if time.monotonic() - since > wait_s:
+            what = "no dask workers" if client.status == "running" else "lost the dask scheduler"
+            err = RunError(f"{what} for {wait_s:g} s; {resume_hint}")
+            err.prefixes = prefixes()
+            raise err
+        return since
+
+    def result_of(fut):
+        """A finished task's result. If its worker died before the result was fetched, dask
+        computes the task again: wait for that as for any task, within the same bounded wait
+        (without workers, fut.result() alone waits for ever)."""
+        since = None
+        while True:
+            try:
+                return fut.result(timeout=POLL_S)
+            except TimeoutError:
+                since = cluster_check(since)
+
     ac = as_completed(list(futs))
     since = None  # when the cluster was first seen without a scheduler or workers
     try:
@@ -121,7 +153,7 @@ def run_dask(client, spec: Spec, chunks: list, todo: list, finished, wait_s: flo
             batch = ac.next_batch(block=False)
             for fut in batch:
                 k, a = futs.pop(fut)
-                back[k][a] = fut.result()
+                back[k][a] = result_of(fut)
                 fut.release()  # the result is here: the worker need not keep it
                 n = n_launches(back[k][a])
                 if len(back[k]) == len(ranges[k]):  # the chunk is whole: save it first
@@ -133,20 +165,7 @@ def run_dask(client, spec: Spec, chunks: list, todo: list, finished, wait_s: flo
                 since = None
                 continue
             time.sleep(0.1)
-            try:
-                healthy = client.status == "running" and len(client.nthreads()) > 0
-            except lost:
-                healthy = False
-            if healthy:
-                since = None
-            elif since is None:
-                since = time.monotonic()
-            elif time.monotonic() - since > wait_s:
-                what = ("no dask workers" if client.status == "running"
-                        else "lost the dask scheduler")
-                err = RunError(f"{what} for {wait_s:g} s; {resume_hint}")
-                err.prefixes = prefixes()
-                raise err
+            since = cluster_check(since)
     except lost as exc:
         err = RunError(f"the dask cluster failed ({type(exc).__name__}: {str(exc)[:80]}); "
                        f"{resume_hint}")
@@ -158,6 +177,14 @@ def run_dask(client, spec: Spec, chunks: list, todo: list, finished, wait_s: flo
     finally:
         for fut in futs:
             fut.release()
+
+
+def _ignore_interrupts():
+    """On a worker of a local cluster (its main thread): SIGINT ignored."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    return True
 
 
 @contextmanager
@@ -178,9 +205,16 @@ def dask_client(scheduler: str | None = None, workers: int | None = None,
             raise RunError(f"cannot reach the dask scheduler {scheduler} within {wait_s:g} s "
                            f"({type(exc).__name__})") from None
     else:
+        # no dashboard, and the scheduler's small HTTP server on a free port (by default it
+        # takes 8787 and warns when that is busy); the cluster's own logs only for errors
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                               host="127.0.0.1", dashboard_address=None)
+                               host="127.0.0.1", dashboard_address=None,
+                               scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+                               silence_logs=logging.ERROR)
         client = Client(cluster)
+        # a Ctrl-C at the terminal reaches every process of the group: the workers of this
+        # cluster leave it to this process, which keeps what came back and closes them
+        client.run(_ignore_interrupts)
     try:
         yield client
     finally:
