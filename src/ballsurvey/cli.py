@@ -597,7 +597,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("-q", "--quiet", action="count", default=0,
                    help="only errors and the path written")
     s.add_argument("-v", "--verbose", action="count", default=0,
-                   help="also a line as launches finish")
+                   help="also a line as launches finish (-vv: and dask's own log lines)")
     s.set_defaults(func=_cmd_sweep)
 
     p = cmd("plot", help="draw a regime map (PNG) from a sweep's netCDF file")
