@@ -45,3 +45,21 @@ def random_euler_states():
         u[:, 5:8] = rng.normal(0, 2, (n, 3))
         return u
     return make
+
+
+@pytest.fixture(scope="session")
+def big_spec_text():
+    """A one-chunk map of 2000 launches that runs for some seconds: one to interrupt."""
+    return """
+title = "interrupt me"
+[launch]
+theta0_deg = {start = -10.0, stop = 30.0, num = 40}
+thetadot0 = 0.0
+chidot0 = {start = 1.0, stop = 12.0, num = 50}
+phidot0 = -3.0
+[run]
+T = 10.0
+dt = 2e-4
+[output]
+file = "big.nc"
+"""

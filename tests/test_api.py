@@ -108,23 +108,9 @@ def test_units_of_work_are_bit_identical_to_one_kernel_call(tmp_path):
         assert np.array_equal(whole[k], got[k], equal_nan=True), k
 
 
-BIG = """
-title = "interrupt me"
-[launch]
-theta0_deg = {start = -10.0, stop = 30.0, num = 40}
-thetadot0 = 0.0
-chidot0 = {start = 1.0, stop = 12.0, num = 50}
-phidot0 = -3.0
-[run]
-T = 10.0
-dt = 2e-4
-[output]
-file = "big.nc"
-"""
-
-
-def test_ctrl_c_keeps_finished_units_of_a_one_chunk_map_and_resume_is_identical(tmp_path):
-    (tmp_path / "big.toml").write_text(BIG)
+def test_ctrl_c_keeps_finished_units_of_a_one_chunk_map_and_resume_is_identical(tmp_path,
+                                                                                  big_spec_text):
+    (tmp_path / "big.toml").write_text(big_spec_text)
     spec = load_spec(tmp_path / "big.toml")
     assert spec.n_launches <= spec.chunk  # one chunk
     cmd = [sys.executable, "-m", "ballsurvey", "sweep", "big.toml", "-v", "--no-progress"]

@@ -8,6 +8,7 @@ import subprocess
 import sys
 import threading
 import time
+from contextlib import contextmanager
 
 import numpy as np
 import pytest
@@ -39,25 +40,45 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-def test_lost_scheduler_mid_run_is_one_line_and_keeps_parts(tmp_path):
+@contextmanager
+def external_cluster(*worker_args):
+    """A dask scheduler and one single-threaded worker as processes of their own (as a user's
+    `--scheduler ADDR` would be), and a client to them: yields (client, scheduler, worker)."""
     distributed = pytest.importorskip("distributed")
-    spec_path = tmp_path / "lost.toml"
-    spec_path.write_text(SPEC.replace("OUT", str(tmp_path / "lost.nc")))
-    spec = load_spec(spec_path)
     addr = f"tcp://127.0.0.1:{_free_port()}"
     sched = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host",
                               "127.0.0.1", "--port", addr.rsplit(":", 1)[1],
                               "--no-dashboard"], stdout=subprocess.DEVNULL,
                              stderr=subprocess.DEVNULL)
     worker = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", addr,
-                               "--nworkers", "1", "--nthreads", "1", "--no-dashboard"],
+                               "--nthreads", "1", "--no-dashboard", *worker_args],
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    parts = parts_dir(spec.output)
     try:
         client = distributed.Client(addr, timeout=60)
         t0 = time.time()
         while not client.nthreads() and time.time() - t0 < 60:
             time.sleep(0.2)
+        yield client, sched, worker
+        try:
+            client.close(timeout=2)
+        except Exception:
+            pass
+    finally:
+        for p in (worker, sched):
+            p.kill()
+            p.wait(10)
+
+
+def _lost_spec(tmp_path):
+    path = tmp_path / "lost.toml"
+    path.write_text(SPEC.replace("OUT", str(tmp_path / "lost.nc")))
+    return load_spec(path)
+
+
+def test_lost_scheduler_mid_run_is_one_line_and_keeps_parts(tmp_path):
+    spec = _lost_spec(tmp_path)
+    parts = parts_dir(spec.output)
+    with external_cluster("--nworkers", "1") as (client, sched, worker):
 
         def kill_when_a_part_is_saved():
             t1 = time.time()
@@ -75,14 +96,6 @@ def test_lost_scheduler_mid_run_is_one_line_and_keeps_parts(tmp_path):
         killer.join(5)
         kept = list(parts.glob("chunk-*.npz"))
         assert kept and not spec.output.exists()
-        try:
-            client.close(timeout=2)
-        except Exception:
-            pass
-    finally:
-        for p in (worker, sched):
-            p.kill()
-            p.wait(10)
     got = run_sweep(spec, resume=True, command="test")  # the kept chunks, then the rest
     other = tmp_path / "ref.toml"
     other.write_text(SPEC.replace("OUT", str(tmp_path / "ref.nc")))
@@ -96,28 +109,13 @@ def test_worker_lost_holding_finished_results_ends_with_one_line(tmp_path):
     """The only worker dies after its tasks finished but before their results were fetched:
     dask then computes them again, which without workers never happens. The run must end with
     one line after the bounded wait (it waited for ever in fut.result())."""
-    distributed = pytest.importorskip("distributed")
     from ballsurvey.sweep.executors import run_dask
     from ballsurvey.sweep.plan import plan_chunks
 
-    spec_path = tmp_path / "lost.toml"
-    spec_path.write_text(SPEC.replace("OUT", str(tmp_path / "lost.nc")))
-    spec = load_spec(spec_path)
+    spec = _lost_spec(tmp_path)
     chunks = plan_chunks(spec.shape, spec.chunk)
-    addr = f"tcp://127.0.0.1:{_free_port()}"
-    sched = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--host",
-                              "127.0.0.1", "--port", addr.rsplit(":", 1)[1],
-                              "--no-dashboard"], stdout=subprocess.DEVNULL,
-                             stderr=subprocess.DEVNULL)
-    worker = subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", addr,
-                               "--nthreads", "1", "--no-nanny", "--no-dashboard"],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     saved = []
-    try:
-        client = distributed.Client(addr, timeout=60)
-        t0 = time.time()
-        while not client.nthreads() and time.time() - t0 < 60:
-            time.sleep(0.2)
+    with external_cluster("--no-nanny") as (client, sched, worker):
 
         def in_memory(dask_scheduler):
             return sum(ts.state == "memory" for ts in dask_scheduler.tasks.values())
@@ -151,36 +149,13 @@ def test_worker_lost_holding_finished_results_ends_with_one_line(tmp_path):
         assert not runner.is_alive(), "run_dask still waiting 90 s after its only worker died"
         assert len(raised) == 1 and "no dask workers for 2 s" in str(raised[0])
         assert "\n" not in str(raised[0]) and saved == [saved[0]]
-        try:
-            client.close(timeout=2)
-        except Exception:
-            pass
-    finally:
-        for p in (worker, sched):
-            p.kill()
-            p.wait(10)
 
 
-BIG = """
-title = "interrupt me"
-[launch]
-theta0_deg = {start = -10.0, stop = 30.0, num = 40}
-thetadot0 = 0.0
-chidot0 = {start = 1.0, stop = 12.0, num = 50}
-phidot0 = -3.0
-[run]
-T = 10.0
-dt = 2e-4
-[output]
-file = "big.nc"
-"""
-
-
-def test_ctrl_c_at_the_terminal_with_workers_is_one_line(tmp_path):
+def test_ctrl_c_at_the_terminal_with_workers_is_one_line(tmp_path, big_spec_text):
     """Ctrl-C at a terminal signals the whole process group, the local cluster's worker
     processes too: they used to print a KeyboardInterrupt traceback each. Only our line now."""
     pytest.importorskip("distributed")
-    (tmp_path / "big.toml").write_text(BIG)
+    (tmp_path / "big.toml").write_text(big_spec_text)
     cmd = [sys.executable, "-m", "ballsurvey", "sweep", "big.toml", "--workers", "2", "-v",
            "--no-progress"]
     proc = subprocess.Popen(cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
