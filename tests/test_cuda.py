@@ -69,7 +69,7 @@ title = "backend check"
 [launch]
 theta0_deg = [-5.0, 26.0]
 thetadot0 = 0.0
-chidot0 = [4.05, 3.75]
+chidot0 = [3.75, 4.05]
 phidot0 = -3.0
 [run]
 T = 1.5

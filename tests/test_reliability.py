@@ -122,6 +122,14 @@ SPEC_CASES = [  # (sections, first words of the message after "<spec file>: ")
     ({"classify": {"min_cycles": "1e30"}}, "[classify] min_cycles: must be <= 10000"),
     ({"classify": {"min_cycles": "2.5"}}, "[classify] min_cycles: must be a whole number"),
     ({"output": {"file": "'out/x'"}}, "[output] file: must be a path ending in .nc"),
+    # a list axis out of order made a map whose plots drew shapes in the wrong places
+    ({"launch": {"chidot0": "[12.0, 1.0, 4.0]"}},
+     "[launch] chidot0: values must increase along the list"),
+    ({"launch": {"phidot0": "1e300"}}, "[launch] phidot0: must be within +-1000 rad/s"),
+    ({"launch": {"thetadot0": "[0.0, 2000.0]"}}, "[launch] thetadot0: must be within +-1000"),
+    ({"launch": {"chidot0": "{start = -1e9, stop = 8.0, num = 3}"}},
+     "[launch] chidot0: must be within +-1000 rad/s"),
+    ({"launch": {"chi0_deg": "1e15"}}, "[launch] chi0_deg: must be within +-1e+06 deg"),
 ]
 
 
@@ -179,6 +187,19 @@ CLI_CASES = [  # (argv, first words of the message after "ballsurvey CMD: error:
      "--bracket: must have LO < HI"),
     (["find", "--shape", "square", "--phidot0", "-3", "--trace-theta0", "0", "10", "1e12"],
      "--trace-theta0 NUM: must be <= 100000"),
+    # a spin of 1e9 rad/s ran for over 10 minutes; theta0 >= 90 deg said "no solution"
+    (["find", "--shape", "square", "--theta0-deg", "-5", "--phidot0", "1e9"],
+     "--phidot0: must be within +-1000 rad/s"),
+    (["find", "--shape", "square", "--theta0-deg", "95", "--phidot0", "-3"],
+     "--theta0-deg: |theta0| must be < 90 deg"),
+    (["find", "--shape", "square", "--phidot0", "-3", "--trace-theta0", "80", "95", "4"],
+     "--trace-theta0: |theta0| must be < 90 deg"),
+    (["find", "--shape", "square", "--theta0-deg", "-5", "--phidot0", "-3", "--bracket", "0",
+      "1e300"], "--bracket: must be within +-1000 rad/s"),
+    (["refine", "--phidot0", "1e300"], "--phidot0: must be within +-1000 rad/s"),
+    (["refine", "--theta0", "-10", "95"], "--theta0: |theta0| must be < 90 deg"),
+    (["path", "--theta0-deg", "-5", "--chidot0", "4", "--phidot0", "-3", "--chi0-deg", "1e15"],
+     "--chi0-deg: must be within +-1e+06 deg"),
 ]
 
 
@@ -202,6 +223,8 @@ def test_bad_option_one_line_exit_2_nothing_written(tmp_path, capsys, monkeypatc
     (dict(T=-1.0), "T: must be > 0"),
     (dict(n_out=10**9), "n_out: must be <= 1e+07"),
     (dict(method="euler"), "method: unknown method"),
+    (dict(phidot0=-1e9), "phidot0: must be within +-1000 rad/s"),
+    (dict(chi0_deg=1e17), "chi0_deg: must be within +-1e+06 deg"),
 ])
 def test_simulate_refuses_bad_input_at_once(kw, words):
     launch = dict(theta0_deg=-5.0, thetadot0=0.0, chidot0=4.05, phidot0=-3.0, T=1.0, dt=1e-3)

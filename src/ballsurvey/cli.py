@@ -29,6 +29,28 @@ def _opt(name, value, **rules):
         raise UserError(str(exc)) from None
 
 
+def _launch_opt(flag, name, value):
+    """A launch input option: theta0_deg inside the model's tilts (the paper's ball), a rate or
+    the heading within `limits.LAUNCH_BOUNDS`; UserError naming the flag."""
+    import math
+
+    from . import limits
+    from .ball import Ball, tilt_error
+
+    if value is None:
+        return None
+    try:
+        if name != "theta0_deg":
+            return limits.launch_value(name, value, flag)
+        value = limits.number(flag, value)
+    except limits.InputError as exc:
+        raise UserError(str(exc)) from None
+    problem = tilt_error(value, math.degrees(Ball.paper().flat_face_theta_rad))
+    if problem:
+        raise UserError(f"{flag}: {problem}")
+    return value
+
+
 def _out_file(name, value, suffix):
     """-o/--output: a file name ending in `suffix` that is not an existing folder."""
     from pathlib import Path
@@ -285,7 +307,7 @@ def _cmd_path(args):
 
     out = _out_file("-o/--output", args.output, ".png")
     for name in ("theta0_deg", "thetadot0", "chidot0", "phidot0", "chi0_deg"):
-        _opt("--" + name.replace("_", "-"), getattr(args, name))
+        _launch_opt("--" + name.replace("_", "-"), name, getattr(args, name))
     try:
         limits.steps(args.T, args.dt, "--T", "--dt")
         limits.samples(args.n_out, "--n-out")
@@ -353,13 +375,16 @@ def _cmd_find(args):
 
     _opt("--n-sides", args.n_sides, integer=True, lo=3, hi=1000)
     for name in ("theta0_deg", "thetadot0", "chidot0", "phidot0"):
-        _opt("--" + name.replace("_", "-"), getattr(args, name))
+        _launch_opt("--" + name.replace("_", "-"), name, getattr(args, name))
     if args.bracket:
-        lo, hi = (_opt("--bracket", v) for v in args.bracket)
+        # a theta0 bracket may reach past the model's tilts: the scan skips what it cannot take
+        lo, hi = (_opt("--bracket", v) if args.solve == "theta0_deg"
+                  else _launch_opt("--bracket", args.solve, v) for v in args.bracket)
         if not lo < hi:
             raise UserError(f"--bracket: must have LO < HI, got {lo:g} {hi:g}")
     if args.trace_theta0:
-        start, stop = (_opt("--trace-theta0", v) for v in args.trace_theta0[:2])
+        start, stop = (_launch_opt("--trace-theta0", "theta0_deg", v)
+                       for v in args.trace_theta0[:2])
         _opt("--trace-theta0 NUM", args.trace_theta0[2], integer=True, lo=1,
              hi=min(limits.MAX_LAUNCHES, 10**5))
     polygons = {"triangle": 3, "square": 4, "pentagon": 5, "hexagon": 6, "heptagon": 7,
@@ -417,11 +442,11 @@ def _cmd_refine(args):
     from . import limits
     from .refine import compare_with_full
 
-    for name in ("--theta0", "--chidot0"):
-        lo, hi = (_opt(name, v) for v in getattr(args, name[2:]))
+    for name, launch_name in (("--theta0", "theta0_deg"), ("--chidot0", "chidot0")):
+        lo, hi = (_launch_opt(name, launch_name, v) for v in getattr(args, name[2:]))
         if not lo < hi:
             raise UserError(f"{name}: must have LO < HI, got {lo:g} {hi:g}")
-    _opt("--phidot0", args.phidot0)
+    _launch_opt("--phidot0", "phidot0", args.phidot0)
     coarse = _opt("--coarse", args.coarse, integer=True, lo=2, hi=10**5)
     levels = _opt("--levels", args.levels, integer=True, lo=0, hi=30)
     side = (coarse - 1) * 2**levels + 1
@@ -430,13 +455,6 @@ def _cmd_refine(args):
         limits.steps(args.T, 2e-4, "--T", "--T (at refine's step of 2e-4 s)")
     except limits.InputError as exc:
         raise UserError(str(exc)) from None
-    import math
-
-    from .ball import Ball, tilt_error
-
-    problem = tilt_error(args.theta0, math.degrees(Ball.paper().flat_face_theta_rad))
-    if problem:
-        raise UserError(f"--theta0: {problem}")
     out = _out_file("-o/--output", args.output, ".nc")
     import time
 

@@ -36,6 +36,16 @@ ATOL_MAX = 1.0
 MAX_OBSERVE_EVERY = 10**4
 MAX_BLOCK = 2**16
 MAX_CYCLES = 10**4
+#: launch rates a request may give (rad/s): a hundred times the paper's, which reach about
+#: 10 rad/s. The integration step is set by the fastest rate, so a launch at 1e9 rad/s would need
+#: some 1e10 steps a second of motion; it is an input error, not a run to wait for.
+MAX_RATE = 1000.0
+#: initial heading (deg): it only turns the path; far beyond a turn its rounding would reach the
+#: path (at 1e15 deg a float's step is 0.1 deg)
+MAX_HEADING_DEG = 1e6
+#: launch inputs with bounds of their own: name -> (largest magnitude, unit)
+LAUNCH_BOUNDS = {"thetadot0": (MAX_RATE, "rad/s"), "chidot0": (MAX_RATE, "rad/s"),
+                 "phidot0": (MAX_RATE, "rad/s"), "chi0_deg": (MAX_HEADING_DEG, "deg")}
 #: integer thresholds of the classifier ([classify] table): name -> (lowest, highest)
 CLASSIFY_INT_RANGES = {"min_cycles": (1, 10**4), "max_star_points": (2, 1000)}
 
@@ -79,6 +89,17 @@ def number(name: str, v, *, positive: bool = False, nonnegative: bool = False,
     if hi is not None and v > hi:
         raise InputError(f"{name}: must be <= {hi:g}, got {v!r}")
     return v if integer else float(v)
+
+
+def launch_value(name: str, v, label: str | None = None) -> float:
+    """A launch rate or heading (`LAUNCH_BOUNDS`: thetadot0, chidot0, phidot0 in rad/s, chi0_deg):
+    a finite number within its bound. `label` names it in the message (default: name)."""
+    label = label or name
+    v = number(label, v)
+    bound, unit = LAUNCH_BOUNDS[name]
+    if not abs(v) <= bound:
+        raise InputError(f"{label}: must be within +-{bound:g} {unit}, got {v!r}")
+    return v
 
 
 def step_count(T: float, dt: float, multiple: int = 1) -> int:

@@ -35,7 +35,9 @@ def check_simulate_inputs(theta0_deg, thetadot0, chidot0, phidot0, T, dt, chi0_d
                           atol=1e-12) -> None:
     """Every input of `simulate` by the shared rules of `ballsurvey.limits` (InputError)."""
     for name, v in (("thetadot0", thetadot0), ("chidot0", chidot0), ("phidot0", phidot0),
-                    ("chi0_deg", chi0_deg), ("x0", x0), ("y0", y0)):
+                    ("chi0_deg", chi0_deg)):
+        limits.launch_value(name, v)
+    for name, v in (("x0", x0), ("y0", y0)):
         limits.number(name, v)
     check_launch(theta0_deg, T, dt, ball or Ball.paper())
     limits.samples(n_out)

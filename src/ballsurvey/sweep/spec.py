@@ -155,6 +155,8 @@ def _axis(src, where, v):
         vals = np.array([_number(src, f"{where}[{i}]", x) for i, x in enumerate(v)])
         if len(np.unique(vals)) != len(vals):
             _err(src, where, "repeated values")
+        if np.any(np.diff(vals) < 0):  # the map's axis is its coordinate: plots and queries
+            _err(src, where, "values must increase along the list (a map's axis is sorted)")
         return vals
     return np.array([_number(src, where, v)])
 
@@ -183,6 +185,17 @@ def _ball(src, table) -> Ball:
         if isinstance(exc, SpecError):
             raise
         _err(src, "[ball]", str(exc))
+
+
+def _check_bounds(src, where, columns):
+    """Launch rates and heading within `limits.LAUNCH_BOUNDS` (columns: name -> values)."""
+    for k, (bound, _) in limits.LAUNCH_BOUNDS.items():
+        vals = np.asarray(columns.get(k, ()), dtype=float)
+        if vals.size and not np.abs(vals).max() <= bound:
+            try:
+                limits.launch_value(k, vals[np.argmax(np.abs(vals))])
+            except InputError as exc:
+                _err(src, f"{where} {k}", str(exc).split(": ", 1)[1])
 
 
 def _check_tilts(src, where, theta0_deg, balls_flat_deg):
@@ -290,6 +303,7 @@ def load_spec(path, *, text: str | None = None, run: dict | None = None) -> Spec
         for k in names:
             axes[k] = _axis(src, f"[launch] {k}", launch[k])
         chi0 = _number(src, "[launch] chi0_deg", launch.get("chi0_deg", 0.0))
+        _check_bounds(src, "[launch]", {**axes, "chi0_deg": np.array([chi0])})
         flat = []
         for combo in itertools.product(*[axes[k] for k in ball_axes]):
             try:
@@ -322,6 +336,7 @@ def load_spec(path, *, text: str | None = None, run: dict | None = None) -> Spec
             _err(src, "[[points]] name", "names must be unique")
         points = {k: np.array(v, dtype=object if k == "name" else float) for k, v in cols.items()}
         points["name"] = np.array(cols["name"], dtype=str)
+        _check_bounds(src, "[[points]]", points)
         _check_tilts(src, "[[points]] theta0_deg", points["theta0_deg"],
                      [math.degrees(base_ball.flat_face_theta_rad)])
 
