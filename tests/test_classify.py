@@ -150,6 +150,28 @@ def test_loops_cusps_and_stars(launch, label, kind):
         assert a["n_sides"] == pytest.approx(2.5, abs=0.1)
 
 
+@pytest.mark.parametrize("launch", [
+    (-10.0, 2.0, -2.5),  # the review's case: called a {3/1} star beside triangles
+    (-6.0, 1.75, -3.0),  # the square map's three {3/1} "stars" (turns of 125.2-125.3 deg)
+    (19.0, 1.25, -3.0),
+])
+def test_a_three_cornered_path_turning_over_125_deg_is_a_triangle_not_a_star(launch):
+    """A star {p/q} steps over q >= 2 corners; the best fit {3/1} of a turn of 125-130 deg per
+    cycle is a triangle that drifts round. Judged from the trajectory: the velocity's heading
+    turns between 125 and 144 deg from one theta maximum to the next (n = 360/turn rounds to
+    3), the path has no loops, and its corners are distinct (the classifier then says
+    triangle, as the same launches a few degrees of theta0 away)."""
+    th0, chd0, phd0 = launch
+    ds = simulate(th0, 0.0, chd0, phd0, T=20.0, n_out=40001)
+    raw = abs(_raw_heading_turn_per_cycle(ds))
+    assert 125.0 < raw < 144.0 and round(360.0 / raw) == 3, raw
+    a = ds.attrs
+    assert a["loops_per_cycle"] == 0 and a["corner_kind"] == "rounded"
+    assert a["corner_sharpness"] >= 2.0  # distinct corners: not a round path
+    assert a["label"] == "triangle", a["label"]
+    assert (a["star_points"], a["star_step"]) == (0, 0)
+
+
 # launches found wrong by eye in a broad random map (issue: labels a person agrees with); each
 # property is measured on the stored trajectory: radial spread about the circle through three
 # successive theta maxima, loops from the unwrapped heading of the velocity

@@ -195,7 +195,9 @@ def label_fields(obs: np.ndarray, flat_face_theta, th: Thresholds = Thresholds()
         # turn near 180 deg per cycle: each cycle is half of an oval that precesses slowly
         oval = is_star & (n_sides < th.star_min_sides)
     polygonal &= ~(petals | oval)
-    label[is_star & polygonal] = CODE["star"]
+    # a star {p/q} steps over q >= 2 corners; its best fit {3/1} is a triangle (the nearest
+    # whole n says so: a turn of 125-130 deg per cycle is a triangle drifting round)
+    label[is_star & polygonal & ((star_q >= 2) | (nn < 3))] = CODE["star"]
     # no distinct corners (or too many): a circle if the path stays near one circle; a rosette if
     # it loops, makes petals or turns more than a star's worth per cycle (ovals, rounded stars);
     # else a rounded polygon, named by its nearest whole n like any other
