@@ -61,6 +61,36 @@ def test_bad_specs_and_files_are_input_errors(tmp_path):
         ballsurvey.open_map(tmp_path / "x.nc")
 
 
+@pytest.mark.parametrize("call,words", [
+    # from the review: each answered something (0 rows, a truncated n, a TypeError) before
+    (lambda ds: ballsurvey.query(ds, n_sides=4.7), "n_sides: must be a whole number"),
+    (lambda ds: ds.ballsurvey.mask(n_sides=4.7), "n_sides: must be a whole number"),
+    (lambda ds: ballsurvey.query(ds, n_sides=float("nan")), "n_sides: must be finite"),
+    (lambda ds: ballsurvey.query(ds, n_sides="4"), "n_sides: must be a number"),
+    (lambda ds: ds.ballsurvey.mask(n_sides="x"), "n_sides: must be a number"),
+    (lambda ds: ballsurvey.query(ds, shape="square", limit=-2), "limit: must be >= 1"),
+    (lambda ds: ballsurvey.query(ds, shape="square", limit=0), "limit: must be >= 1"),
+    (lambda ds: ballsurvey.query(ds, shape=["square", "triangle"]), "shape: one label word"),
+    (lambda ds: ballsurvey.query(ds.drop_vars("n_sides"), n_sides=4), "does not hold 'n_sides'"),
+    (lambda ds: ds.drop_vars("n_sides").ballsurvey.mask(n_sides=4), "does not hold 'n_sides'"),
+    (lambda ds: ballsurvey.query(ds.drop_vars("closure_m"), shape="square", max_closure=1e-3),
+     "does not hold 'closure_m'"),
+    (lambda ds: ballsurvey.open_map(None), "a path to a .nc file"),
+    (lambda ds: ds.ballsurvey.where(thetadot0=1e-7), "not the map's one value of thetadot0, 0.0"),
+])
+def test_questions_a_map_cannot_answer_are_one_line_input_errors(mem_map, call, words):
+    with pytest.raises(ballsurvey.InputError) as exc:
+        call(mem_map)
+    assert words in str(exc.value) and "\n" not in str(exc.value), str(exc.value)
+
+
+def test_a_binary_file_as_a_spec_is_an_input_error(tmp_path):
+    p = tmp_path / "m.toml"
+    p.write_bytes(b"\x89HDF\r\n\x1a\n\x00\xff\xfe")
+    with pytest.raises(ballsurvey.InputError, match="not a text file"):
+        ballsurvey.sweep(p)
+
+
 def test_label_words_accessor_and_cf_xarray(mem_map):
     cf_xarray = pytest.importorskip("cf_xarray")  # noqa: F841
     m = mem_map.ballsurvey.mask(shape="square")
@@ -167,6 +197,13 @@ def map_file(tmp_path_factory):
     (["query", "MAP", "--shape", "square", "--limit", "0"], "--limit: must be >= 1"),
     (["query", "MAP", "--shape", "hexagon"], "unknown shape 'hexagon'"),
     (["find", "--shape", "hexagon", "--theta0-deg", "5", "--phidot0", "-3"], "--n-sides 6"),
+    # argparse's own errors were usage plus error, five lines
+    (["query", "MAP", "--n-sides", "abc"], "argument --n-sides: invalid int value: 'abc'"),
+    (["query", "MAP"], "one of the arguments --shape --n-sides is required"),
+    (["sweep", "MAP"], "not a text file (a sweep spec is TOML text)"),
+    (["gallery", "MAP", "--per-label", "0"], "--per-label: must be >= 1"),
+    (["find", "--shape", "square", "--theta0-deg", "-5", "--phidot0", "-3", "-o", "x.csv"],
+     "-o/--output goes with --trace-theta0"),
 ])
 def test_misuse_is_one_line_exit_2(map_file, tmp_path, capsys, argv, words):
     spec = map_file.with_suffix(".toml")
@@ -190,6 +227,22 @@ def test_query_csv_and_json_for_scripts(map_file, capsys):
     assert main(["query", str(map_file), "--shape", "square", "--format", "csv"]) == 0
     df = pd.read_csv(io.StringIO(capsys.readouterr().out), comment="#")
     assert "thetadot0" not in df.columns and "chidot0" in df.columns
+    # the columns are the matches' whatever --limit keeps (they changed with it)
+    for limit in ("1", "2", "3"):
+        assert main(["query", str(map_file), "--shape", "square", "--format", "csv",
+                     "--limit", limit]) == 0
+        cut = pd.read_csv(io.StringIO(capsys.readouterr().out), comment="#")
+        assert list(cut.columns) == list(df.columns) and len(cut) == min(int(limit), len(df))
+
+
+def test_a_refined_map_names_whole_launches_and_refuses_what_it_lacks(tmp_path, capsys):
+    out = tmp_path / "ref.nc"
+    assert main(["refine", "--coarse", "3", "--levels", "1", "--T", "2", "-o", str(out)]) == 0
+    ds = ballsurvey.open_map(out)
+    assert float(ds.thetadot0) == 0.0 and ds.thetadot0.attrs["units"] == "rad s-1"
+    capsys.readouterr()
+    assert main(["query", str(out), "--n-sides", "4"]) == 2  # it said "no launches match"
+    assert "does not hold 'n_sides'" in capsys.readouterr().err
 
 
 def test_help_shows_defaults_and_units():
@@ -222,3 +275,15 @@ def test_importing_plot_leaves_matplotlib_alone():
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                        env={"MPLBACKEND": "svg", **__import__("os").environ})
     assert r.returncode == 0, r.stderr
+
+
+def test_the_summary_of_a_map_of_named_points_suggests_no_plot(tmp_path, capsys):
+    """`plot` refuses a map of named points; the summary suggested it."""
+    p = tmp_path / "pts.toml"
+    p.write_text('[[points]]\nname = "a"\ntheta0_deg = -5.0\nthetadot0 = 0.0\nchidot0 = 4.05\n'
+                 'phidot0 = -3.0\n[[points]]\nname = "b"\ntheta0_deg = 10.0\nthetadot0 = 0.0\n'
+                 f'chidot0 = 4.0\nphidot0 = -3.0\n[run]\nT = 3.0\ndt = 5e-4\n[output]\n'
+                 f'file = "{tmp_path / "pts.nc"}"\n')
+    assert main(["sweep", str(p)]) == 0
+    out = capsys.readouterr().out
+    assert "wrote" in out and "ballsurvey plot" not in out, out

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import tempfile
 import tomllib
 from dataclasses import replace
@@ -23,6 +24,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from . import limits
 from .classify.labels import CODE, LABELS
 from .limits import InputError
 from .store import decode_label
@@ -85,6 +87,8 @@ def _spec_text(spec) -> tuple[str, str, bool]:
             text = p.read_text()
         except OSError as exc:
             raise InputError(f"{spec}: cannot read: {exc.strerror}") from None
+        except UnicodeDecodeError:
+            raise InputError(f"{spec}: not a text file (a sweep spec is TOML text)") from None
         return text, str(p), True  # a spec file: its output defaults to results/<name>.nc
     elif isinstance(spec, str):
         text, source = spec, "spec (TOML text)"
@@ -151,6 +155,8 @@ def open_map(path, load: bool | None = None) -> xr.Dataset:
     """Open a ballsurvey map (a netCDF file written by `sweep`). load: read it into memory and
     close the file (default: when it is under 256 MB); otherwise lazily (dask when installed).
     Anything that is not a map raises InputError with one line."""
+    if not isinstance(path, (str, os.PathLike)):
+        raise InputError(f"open_map: a path to a .nc file, got {type(path).__name__}")
     p = Path(path)
     if p.suffix == ".toml":
         raise InputError(f"{path} is a sweep spec, not a map: run `ballsurvey sweep {path}` and "
@@ -196,9 +202,10 @@ def label_mask(ds: xr.Dataset, shape=None, n_sides: int | None = None) -> xr.Dat
             raise InputError(f"unknown shape {bad[0]!r}; words: {', '.join(LABELS)}")
         mask = mask & ds.label.isin([CODE[w] for w in words])
     if n_sides is not None:
-        n = int(n_sides)
-        if n < 3:
-            raise InputError(f"n_sides must be >= 3, got {n_sides}")
+        n = limits.number("n_sides", n_sides, integer=True, lo=3)
+        if "n_sides" not in ds:
+            raise InputError("n_sides: this map does not hold 'n_sides' (a spec whose [output] "
+                             "variables leave it out, or a refine map): ask by shape")
         poly = ds.label.isin([CODE["triangle"], CODE["square"], CODE["ngon"]])
         mask = mask & poly & (np.round(ds.n_sides) == n)
     return mask
@@ -263,6 +270,9 @@ def select(ds: xr.Dataset, **at) -> xr.Dataset:
         step = np.min(np.diff(np.sort(vals))) if vals.size > 1 else 0.0
         tol = 0.5 * step if vals.size > 1 else 1e-9 * max(1.0, abs(vals[0]))
         if not abs(vals[i] - v) <= tol * (1 + 1e-9):
+            if vals.size == 1:
+                raise InputError(f"{k} = {v!r} is not the map's one value of {k}, "
+                                 f"{float(vals[0])!r}")
             near = sorted(vals[np.argsort(np.abs(vals - v))[:2]])
             raise InputError(f"{k} = {v:g} is not on the map's grid ({vals.min():g} .. "
                              f"{vals.max():g}); nearest values: "
@@ -279,15 +289,8 @@ def query(ds: xr.Dataset, shape=None, n_sides: int | None = None, *, limit: int 
     n_sides, n_sides_error, closure_m, theta_max_deg, near_vertical. `df.attrs['units']` gives
     each column's units, `df.attrs['matched']` how many matched before `limit`. Axis keywords
     (e.g. phidot0=-3) keep one value of an axis (within half a grid step)."""
-    from .query import query_frame
+    from .query import query as query_rows
 
     if at:
         ds = select(ds, **at)
-    df = query_frame(ds, shape=shape, n_sides=n_sides, max_n_error=max_n_error,
-                     max_closure=max_closure)
-    if limit is not None:
-        matched = len(df)
-        attrs = dict(df.attrs)
-        df = df.head(int(limit))
-        df.attrs.update(attrs, matched=matched)
-    return df
+    return query_rows(ds, shape, n_sides, limit, max_n_error, max_closure)

@@ -258,10 +258,14 @@ def sweep_summary(path, n_launches: int, report: dict) -> str:
         lines.append(f"  integrated again in the fixed frame (near the vertical): {fallback}")
     best = next((w for w in ("square", "triangle", "ngon", "star", "circle")
                  if counts[LABELS.index(w)]), None)
-    nxt = f"  next: ballsurvey plot {path}"
+    with xr.open_dataset(path) as ds:
+        points = "launch" in ds.dims  # named points: a table, no plot
+    steps = [] if points else [f"ballsurvey plot {path}"]
     if best:
-        nxt += f"   |   ballsurvey query {path} --shape {best}"
-    lines.append(nxt)
+        steps.append(f"ballsurvey query {path} --shape {best}")
+    nxt = "  next: " + "   |   ".join(steps) if steps else ""
+    if nxt:
+        lines.append(nxt)
     return "\n".join(lines)
 
 
@@ -326,15 +330,15 @@ def _cmd_path(args):
 
 
 def _cmd_query(args):
-    from .query import DEFAULT_LIMIT, format_table, query_frame
+    from .query import DEFAULT_LIMIT, format_table, query
 
     limit = _opt("--limit", args.limit, integer=True, lo=1)
     if limit is None:
         limit = DEFAULT_LIMIT
-    df = query_frame(_open_map(args.result), shape=args.shape, n_sides=args.n_sides,
-                     max_n_error=args.max_n_error, max_closure=args.max_closure)
-    print(format_table(df.head(limit), args.format), flush=True)
-    more = len(df) - limit
+    df = query(_open_map(args.result), shape=args.shape, n_sides=args.n_sides, limit=limit,
+               max_n_error=args.max_n_error, max_closure=args.max_closure)
+    print(format_table(df, args.format), flush=True)
+    more = df.attrs["matched"] - len(df)
     if more > 0:
         print(f"... {more} more matched (--limit N to see more)", file=sys.stderr)
 
@@ -344,9 +348,10 @@ def _cmd_gallery(args):
 
     from .gallery import draw_gallery
 
-    out = Path(args.output or Path(args.result).with_name(Path(args.result).stem + "-gallery.png"))
-    if out.suffix != ".png":
-        raise UserError(f"-o must name a .png file, got {str(out)!r}")
+    _opt("--per-label", args.per_label, integer=True, lo=1, hi=100)
+    _opt("--T", args.T, positive=True, hi=1e6)
+    out = _out_file("-o/--output", args.output or str(Path(args.result).with_name(
+        Path(args.result).stem + "-gallery.png")), ".png")
     rows = draw_gallery(_open_map(args.result), out, per_label=args.per_label, seed=args.seed,
                         T=args.T)
     changed = [r for r in rows if r["label_again"] != r["label"]]
@@ -382,6 +387,9 @@ def _cmd_find(args):
                   else _launch_opt("--bracket", args.solve, v) for v in args.bracket)
         if not lo < hi:
             raise UserError(f"--bracket: must have LO < HI, got {lo:g} {hi:g}")
+    if args.output is not None and not args.trace_theta0:
+        raise UserError("-o/--output goes with --trace-theta0 (one solve prints its roots)")
+    out = _out_file("-o/--output", args.output, ".csv")
     if args.trace_theta0:
         start, stop = (_launch_opt("--trace-theta0", "theta0_deg", v)
                        for v in args.trace_theta0[:2])
@@ -407,10 +415,8 @@ def _cmd_find(args):
         took = time.perf_counter() - t0
         lines = ["theta0_deg,chidot0_rad_s,n_sides_integrated,closure_m,label"] + [
             f"{th:.6g},{s.value:.9g},{s.n_sides:.9f},{s.closure_m:.2e},{s.label}" for th, s in rows]
-        if args.output:
-            from pathlib import Path
-
-            Path(args.output).write_text("\n".join(lines) + "\n")
+        if out is not None:
+            out.write_text("\n".join(lines) + "\n")
             print(f"wrote {len(rows)} points of the n = {n} curve to {args.output} "
                   f"({took:.1f} s, each checked by integration)")
         else:
@@ -490,7 +496,9 @@ def _write_refined(out, res, args) -> None:
                 "chidot0": ("chidot0", ref["chidot0"],
                             {"units": "rad s-1", "long_name": "initial precession rate"}),
                 "phidot0": ((), float(args.phidot0),
-                            {"units": "rad s-1", "long_name": "initial spin rate"})},
+                            {"units": "rad s-1", "long_name": "initial spin rate"}),
+                # refine launches with no tilt rate: said, so the map names whole launches
+                "thetadot0": ((), 0.0, {"units": "rad s-1", "long_name": "initial tilt rate"})},
         attrs={"Conventions": CONVENTIONS, "title": "refined regime map (ballsurvey refine)",
                "references": REFERENCES, "run_T_s": float(args.T),
                "refine_coarse": int(args.coarse), "refine_levels": int(args.levels),
@@ -535,8 +543,15 @@ class _Help(argparse.HelpFormatter):
         return f"{h} (default: {d})"
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with its errors on one line (exit 2), like every other input error."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (--help lists the options)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="ballsurvey", formatter_class=_Help,
+    ap = _Parser(prog="ballsurvey", formatter_class=_Help,
                                  description="Map how a biased ball rolls (Wheatland, Cross et al. "
                                              "2020). Exit status: 0 done, 1 run failed, 2 input "
                                              "error, 130 interrupted.")
@@ -731,7 +746,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exc:  # --help, --version (0) or an option argparse refused (2)
+        return exc.code
     from .limits import RunError
 
     try:

@@ -9,6 +9,7 @@ import math
 import numpy as np
 import xarray as xr
 
+from . import limits
 from .axes import AXES
 from .classify.labels import CODE, LABELS
 from .limits import InputError
@@ -21,6 +22,13 @@ CONDITION_UNITS = {k: ax.text_units for k, ax in AXES.items()}
 #: singular and the result is numerically delicate (computed in the fixed frame where needed)
 NEAR_VERTICAL_DEG = 89.0
 DEFAULT_LIMIT = 20
+
+
+def _needs(ds, name: str, asked: bool, what: str) -> None:
+    """A question that needs a variable the map does not hold is refused (it matched nothing)."""
+    if asked and name not in ds:
+        raise InputError(f"{what}: this map does not hold {name!r} (a spec whose [output] "
+                         "variables leave it out, or a refine map): ask by --shape")
 
 
 def query_frame(ds: xr.Dataset, shape: str | None = None, n_sides: int | None = None,
@@ -43,12 +51,18 @@ def query_frame(ds: xr.Dataset, shape: str | None = None, n_sides: int | None = 
             raise InputError(f"{name} must be a finite number >= 0, got {v!r}")
     if "label" not in ds:
         raise InputError("the file has no 'label' variable (not a ballsurvey map?)")
+    if shape is not None and not isinstance(shape, str):
+        raise InputError(f"shape: one label word, got {shape!r} (ds.ballsurvey.mask takes a "
+                         "list)")
     if (shape is None) == (n_sides is None):
         raise InputError("give exactly one of shape (--shape WORD) or n_sides (--n-sides N)")
     if shape is not None and shape not in LABELS:
         raise InputError(f"unknown shape {shape!r}; words: {', '.join(LABELS)}")
-    if n_sides is not None and n_sides < 3:
-        raise InputError(f"n_sides must be >= 3, got {n_sides}")
+    if n_sides is not None:
+        n_sides = limits.number("n_sides", n_sides, integer=True, lo=3)
+    _needs(ds, "n_sides", n_sides is not None or max_n_error is not None,
+           "--n-sides N or --max-n-error")
+    _needs(ds, "closure_m", max_closure is not None, "--max-closure")
     flat = launches(ds)
     label = flat.label.values.astype(int)
     ns = flat.n_sides.values if "n_sides" in flat else np.full(label.shape, np.nan)
@@ -120,7 +134,7 @@ def format_table(df, fmt: str = "table") -> str:
     "launches"})."""
     if fmt not in ("table", "csv", "json"):
         raise InputError(f"unknown format {fmt!r}; use table, csv or json")
-    const = _constant_columns(df)
+    const = df.attrs.get("common", _constant_columns(df))
     common = {c: (df[c].iloc[0].item() if hasattr(df[c].iloc[0], "item") else df[c].iloc[0])
               for c in const}
     body = df.drop(columns=const)
@@ -158,8 +172,13 @@ def query(ds: xr.Dataset, shape: str | None = None, n_sides: int | None = None,
           limit: int | None = None, max_n_error: float | None = None,
           max_closure: float | None = None):
     """`query_frame` cut to `limit` rows; `df.attrs['matched']` is how many matched before it."""
+    if limit is not None:
+        limit = limits.number("limit", limit, integer=True, lo=1)
     df = query_frame(ds, shape, n_sides, max_n_error, max_closure)
     matched = len(df)
+    # columns said once are those common to every match, not to the rows kept: a script's
+    # columns do not change with --limit
+    df.attrs["common"] = _constant_columns(df)
     if limit is not None:
         attrs = dict(df.attrs)
         df = df.head(limit)

@@ -264,6 +264,8 @@ def load_spec(path, *, text: str | None = None, run: dict | None = None) -> Spec
             text = Path(path).read_text()
         except OSError as exc:
             raise SpecError(f"{src}: cannot read: {exc.strerror}") from None
+        except UnicodeDecodeError:
+            raise SpecError(f"{src}: not a text file (a sweep spec is TOML text)") from None
     try:
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
