@@ -56,6 +56,20 @@ def test_plot_map_needs_the_other_axes_fixed(small_map, tmp_path):
     assert_real_png(out)
 
 
+def test_a_facet_axis_is_never_also_drawn(small_map, tmp_path):
+    """--facet on an axis that would be drawn: a traceback from xarray (given as --x or --y),
+    or a refusal about another axis (when the default axes took it). The drawn axes are now
+    chosen from the others, and a facet named as --x or --y is refused in one line."""
+    # theta0_deg (6 values) would be drawn across by default: the panels draw chidot0 and phidot0
+    out = plot_map(small_map, tmp_path / "f.png", facet="theta0_deg")
+    assert_real_png(out)
+    with pytest.raises(ValueError, match="--facet chidot0 is also the axis drawn up"):
+        plot_map(small_map, tmp_path / "g.png", y="chidot0", facet="chidot0")
+    with pytest.raises(ValueError, match="two axes with more than one value besides the facet"):
+        plot_map(small_map.isel(phidot0=0), tmp_path / "h.png", facet="chidot0")
+    assert not (tmp_path / "g.png").exists() and not (tmp_path / "h.png").exists()
+
+
 def test_plot_path(tmp_path):
     ds = simulate(-5.0, 0.0, 4.05, -3.0, T=6.0)
     assert_real_png(plot_path(ds, tmp_path / "path.png"))

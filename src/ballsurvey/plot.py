@@ -57,11 +57,12 @@ def _select(ds: xr.Dataset, x: str, y: str, at: dict, facet: str | None) -> xr.D
     return ds
 
 
-def default_axes(ds: xr.Dataset) -> tuple[str, str]:
-    """The two longest axes of a grid, the first drawn across."""
-    dims = sorted(ds.label.dims, key=lambda d: -ds.sizes[d])
+def default_axes(ds: xr.Dataset, exclude=()) -> tuple[str, str]:
+    """The two longest axes of a grid (not those in `exclude`), the first drawn across."""
+    dims = sorted((d for d in ds.label.dims if d not in exclude), key=lambda d: -ds.sizes[d])
     if len(dims) < 2 or ds.sizes[dims[1]] < 2:
-        raise InputError("a regime map needs two axes with more than one value")
+        besides = f" besides the facet axis {', '.join(exclude)}" if exclude else ""
+        raise InputError(f"a regime map needs two axes with more than one value{besides}")
     return dims[1], dims[0]
 
 
@@ -72,8 +73,11 @@ def plot_map(ds: xr.Dataset, out, x: str | None = None, y: str | None = None,
         raise InputError("the file has no 'label' variable (not a ballsurvey map?)")
     if "launch" in ds.dims:
         raise InputError("this file holds named points, not a grid: use 'query' to list them")
-    if x is None or y is None:
-        dx, dy = default_axes(ds)
+    if facet is not None and facet in (x, y):
+        raise InputError(f"--facet {facet} is also the axis drawn "
+                         f"{'across (--x)' if facet == x else 'up (--y)'}: facet by another axis")
+    if x is None or y is None:  # the longest axes left after the facet and the axis given
+        dx, dy = default_axes(ds, exclude={facet} if facet else ())
         x = x or (dx if dx != y else dy)
         y = y or (dy if dy != x else dx)
     if x == y:
