@@ -5,7 +5,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from ballsurvey.accuracy import Case, label_agreement, work_precision
+from ballsurvey.accuracy import Case, label_agreement, near_vertical_check, work_precision
 from ballsurvey.ball import Ball
 from ballsurvey.classify import observer as ob
 from ballsurvey.classify.labels import CODE
@@ -185,3 +185,15 @@ def test_fixed_frame_path_is_sampled_like_the_fixed_step_one():
     assert ds.attrs["formulation"] == "fixed_frame" and ds.sizes["time"] == 301
     assert np.allclose(np.diff(ds.time.values), 0.01, rtol=1e-9)
     assert not np.isnan(ds[["x", "y", "theta", "chi", "phi"]].to_array()).any()
+
+
+def test_near_the_vertical_every_setting_puts_launches_in_the_quadratures_n_region():
+    """theta0 80-89.9 deg, where the best squares pass: the per-cycle figures of full and period
+    runs (rk4, dop853) are judged against the quadrature, an independent formulation with no
+    time stepping. Every launch must land in the quadrature's n-region (round n), and the full
+    run's turn per cycle, averaged over many cycles, must be far inside a degree."""
+    r = near_vertical_check(n=24)
+    assert r["launches"] >= 12
+    for name in ("rk4 full", "rk4 period", "dop853 period"):
+        assert r[name]["same_n"] == r["launches"], (name, r)
+    assert r["rk4 full"]["turn_deg"] < 0.01, r

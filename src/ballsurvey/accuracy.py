@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from .ball import Ball
-from .classify.labels import LABELS, Thresholds
+from .classify.labels import LABELS, SHAPES, Thresholds
 from .classify.observer import N_OBS
 from .compose import OBSERVER, classify, run_launches
 from .integrate import ensemble
@@ -205,6 +205,56 @@ def quadrature_check(n=60, seed=3, T=20.0, dt=1e-4) -> dict:
     return {"launches": used, **worst}
 
 
+#: the map settings near_vertical_check measures: name -> run_launches keywords
+NEAR_VERTICAL_RUNS = {
+    "rk4 full": dict(method="rk4", dt=1e-4, cycles=0),
+    "rk4 period": dict(method="rk4", dt=1e-4, cycles=2),
+    "dop853 period": dict(method="dop853", dt=1e-3, cycles=2),
+}
+
+
+def near_vertical_check(n=40, seed=5, T=20.0) -> dict:
+    """Per-cycle figures of launches whose tilt comes within a few degrees of the vertical
+    (theta0 from 80 to 89.9 deg, spin and precession as the paper's squares), where the Euler
+    chart is left and the fixed-frame form takes over, against the quadrature (which holds up
+    to a hair of 90 deg): for each map setting of NEAR_VERTICAL_RUNS, the largest error in turn
+    per cycle (deg) and in n_sides, over the launches the quadrature resolves and every run
+    labels with a shape. quadrature_check leaves these launches out."""
+    from .quadrature import cycle_by_quadrature
+
+    b = Ball.paper()
+    tu, p = b.time_unit, b.nondim_params()
+    rng = np.random.default_rng(seed)
+    th = rng.uniform(80.0, 89.9, n)
+    td, cd, pd = np.zeros(n), rng.uniform(2.0, 6.0, n), rng.uniform(-4.0, -2.0, n)
+    y0 = launch_state(th, td, cd, pd, tu)
+    params = np.repeat(p[:, None], n, 1)
+    runs = {}
+    for name, kw in NEAR_VERTICAL_RUNS.items():
+        res = run_launches(y0, params, StepPlan(T, kw["dt"], tu), kw["method"], rtol=1e-9,
+                           cycles=kw["cycles"])
+        runs[name] = fields_to_si(classify(res, b.flat_face_theta_rad), b.a, tu, b.M)
+    worst = {k: {"turn_deg": 0.0, "n_sides": 0.0, "same_n": 0} for k in runs}
+    used = fixed_frame = 0
+    for i in range(n):
+        q = cycle_by_quadrature(math.radians(th[i]), td[i] * tu, cd[i] * tu, pd[i] * tu, p)
+        if q is None or any(LABELS[r["label"][i]] not in SHAPES for r in runs.values()):
+            continue
+        qs = q.si(b)
+        used += 1
+        fixed_frame += bool(runs["rk4 full"]["formulation"][i])
+        n_q = 360.0 / abs(qs["turn_per_cycle_deg"])
+        for k, r in runs.items():
+            dturn = (r["turn_per_cycle_deg"][i] - qs["turn_per_cycle_deg"] + 180) % 360 - 180
+            worst[k]["turn_deg"] = max(worst[k]["turn_deg"], abs(dturn))
+            worst[k]["n_sides"] = max(worst[k]["n_sides"], abs(r["n_sides"][i] - n_q))
+            # the n-region (round n: triangle, square, ...) the launch is put in, where the
+            # quadrature's n is not within 0.02 of a region's edge
+            worst[k]["same_n"] += (abs(n_q - math.floor(n_q) - 0.5) < 0.02
+                                   or round(r["n_sides"][i]) == round(n_q))
+    return {"launches": used, "fixed_frame": fixed_frame, **worst}
+
+
 def square_launches(n: int = 256, seed: int = 0, T: float = 20.0):
     """The ensemble work-precision launches: n launches around Fig. 12a's square (theta0 within
     0.5 deg, chidot0 within 0.05 rad/s of it, phidot0 = -3 rad/s), seeded; these pass within a few
@@ -339,6 +389,13 @@ def run_accuracy(out_dir="results/accuracy", quick=False, emit=print) -> dict:
         w = qc[k]
         emit(f"  {k:<7} theta period {w['period_rel']:.1e} (relative), turn per cycle "
              f"{w['turn_deg']:.1e} deg, theta_max {w['theta_max_deg']:.1e} deg")
+    nv = near_vertical_check(n=20 if quick else 40)
+    emit(f"near the vertical (theta0 80-89.9 deg), quadrature vs the map's settings on "
+         f"{nv['launches']} launches ({nv['fixed_frame']} in the fixed frame), largest error:")
+    for k in NEAR_VERTICAL_RUNS:
+        emit(f"  {k:<14} turn per cycle {nv[k]['turn_deg']:.1e} deg, n_sides "
+             f"{nv[k]['n_sides']:.1e}; round(n) as the quadrature's on {nv[k]['same_n']} of "
+             f"{nv['launches']}")
 
     keys = ["pos_err_m", "theta_err_rad", "energy_drift", "jellett_drift", "routh_drift", "wall_s"]
     ds = xr.Dataset(
