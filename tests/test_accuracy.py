@@ -98,6 +98,19 @@ def test_no_spin_rocks_along_a_line_in_the_fixed_frame():
     assert ds.attrs["energy_drift"] < 1e-9
 
 
+@pytest.mark.parametrize("theta0", [-6.0, 80.0, 85.0, 89.0, 89.9])
+def test_a_line_rocked_back_and_forth_has_no_turn_per_cycle(theta0):
+    """No spin: the ball rocks along a line (judged from the path: it keeps to the y axis). A
+    line has no turn per cycle; near the vertical the fields gave -135 deg (n = 2.67) or -180
+    deg (n = 2) for launches a hair apart (review). They are not given."""
+    ds = simulate(theta0, 0.0, 0.0, 0.0, T=3.0)
+    assert float(np.abs(ds.x).max()) < 1e-6 * max(1e-3, float(np.abs(ds.y).max()))
+    a = ds.attrs
+    assert a["label"] == "near_straight", a["label"]
+    for k in ("n_sides", "turn_per_cycle_deg", "closure_m", "chord_turn_per_cycle_deg"):
+        assert np.isnan(a[k]), (k, a[k])
+
+
 def test_theta0_within_1_deg_of_90():
     ds = simulate(89.2, 0.0, 2.0, -3.0, T=5.0)
     assert ds.attrs["energy_drift"] < 1e-8 and ds.attrs["label"] not in ("blew_up", "singular")

@@ -232,12 +232,17 @@ def label_fields(obs: np.ndarray, flat_face_theta, th: Thresholds = Thresholds()
         label[o[ob.O_DE] / np.abs(o[ob.O_E0]) > th.max_energy_drift] = CODE["inaccurate"]
     label[failure == CODE["blew_up"]] = CODE["blew_up"]
 
+    # a line retraced has no turn: its heading flips at the cusps and its chord between maxima
+    # is a rounding-sized remainder, so turn, n_sides and closure would be noise (-135 or -180 deg
+    # for launches a hair apart near the vertical): not given
+    line = retraced & ~petal_cycle
     e0 = o[ob.O_E0]
     fin = lambda a: np.where(has & ~steady, a, np.nan)  # noqa: E731 - per-cycle fields
+    turning = lambda a: np.where(line, np.nan, fin(a))  # noqa: E731 - fields of a turn
     return {
         "label": label,
-        "n_sides": fin(n_sides),
-        "turn_per_cycle_deg": fin(turn),
+        "n_sides": turning(n_sides),
+        "turn_per_cycle_deg": turning(turn),
         "theta_period_s": fin(period),
         "side_m": fin(o[ob.O_C_SIDE]),
         "chord_m": fin(side),
@@ -245,12 +250,12 @@ def label_fields(obs: np.ndarray, flat_face_theta, th: Thresholds = Thresholds()
         "corner_kind": kind,
         "corner_sharpness": fin(sharp),
         "turn_monotonicity": fin(monotone),
-        "closure_m": fin(closure),
+        "closure_m": turning(closure),
         "loops_per_cycle": fin(loops),
         "star_points": np.where(label == CODE["star"], star_p, 0).astype(np.int16),
         "star_step": np.where(label == CODE["star"], star_q, 0).astype(np.int16),
         "n_theta_cycles": n_cyc.astype(np.int32),
-        "chord_turn_per_cycle_deg": fin(chord_turn),
+        "chord_turn_per_cycle_deg": turning(chord_turn),
         "theta_min_deg": np.degrees(o[ob.O_TH_MIN]),
         "theta_max_deg": np.degrees(o[ob.O_TH_MAX]),
         "max_friction_ratio": o[ob.O_FRIC],
