@@ -1,6 +1,7 @@
 """The Python way in (sweep from a dict, TOML text or path; open_map; label words; query as a
 DataFrame), units of work (bit-identical whatever the chunking), Ctrl-C (saves finished units,
 exit 130, --resume gives the same file), and the command line's misuse messages."""
+import json
 import re
 import signal
 import subprocess
@@ -82,6 +83,17 @@ def test_questions_a_map_cannot_answer_are_one_line_input_errors(mem_map, call, 
     with pytest.raises(ballsurvey.InputError) as exc:
         call(mem_map)
     assert words in str(exc.value) and "\n" not in str(exc.value), str(exc.value)
+
+
+def test_frames_cut_from_a_query_format_as_they_are(mem_map):
+    """query() names the columns common to every match; a frame a user cuts from it (fewer
+    columns, no rows) formatted with KeyError and IndexError (review)."""
+    from ballsurvey.query import format_table
+
+    df = ballsurvey.query(mem_map, "square")
+    assert len(df) >= 2
+    assert "theta0_deg" in format_table(df[["theta0_deg", "label"]])
+    assert json.loads(format_table(df[df.theta0_deg > 100], "json"))["launches"] == []
 
 
 def test_a_binary_file_as_a_spec_is_an_input_error(tmp_path):

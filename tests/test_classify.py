@@ -172,6 +172,25 @@ def test_a_three_cornered_path_turning_over_125_deg_is_a_triangle_not_a_star(lau
     assert (a["star_points"], a["star_step"]) == (0, 0)
 
 
+@pytest.mark.parametrize("max_points", [2, 3, 5, 12])
+def test_no_star_with_step_one_whatever_max_star_points(max_points):
+    """A small [classify] max_star_points let a {3/1} or {2/1} through as a star (review). The
+    pentagram launch (145 deg per cycle, n = 2.48) is a star {5/2} when 5 points may be
+    searched, and a rosette (a turn over 125 deg without a star's corners) when not; the
+    launch turning 128.8 deg (n = 2.80) is a star or, without a fit of q >= 2, a triangle."""
+    from ballsurvey.classify.labels import Thresholds
+
+    th = Thresholds(max_star_points=max_points)
+    for launch in ((20.0, 0.0, 0.0, 3.0), (-10.0, 0.0, 1.8, -2.5)):
+        a = simulate(*launch, T=20.0, thresholds=th).attrs
+        assert a["label"] != "star" or a["star_step"] >= 2, (launch, max_points, a["label"])
+        if a["label"] != "star":
+            want = "triangle" if round(a["n_sides"]) == 3 else "rosette"
+            assert a["label"] == want, (launch, max_points, a["label"], a["n_sides"])
+    penta = simulate(20.0, 0.0, 0.0, 3.0, T=20.0, thresholds=th).attrs
+    assert penta["label"] == ("star" if max_points >= 5 else "rosette"), penta["label"]
+
+
 # launches found wrong by eye in a broad random map (issue: labels a person agrees with); each
 # property is measured on the stored trajectory: radial spread about the circle through three
 # successive theta maxima, loops from the unwrapped heading of the velocity

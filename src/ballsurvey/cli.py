@@ -212,7 +212,7 @@ def _quiet_dask() -> None:
 
     import distributed  # noqa: F401
 
-    quiet = {"distributed": logging.ERROR, "tornado": logging.CRITICAL,
+    quiet = {"distributed": logging.CRITICAL, "tornado": logging.CRITICAL,
              "asyncio": logging.CRITICAL}
     for name in list(logging.root.manager.loggerDict) + list(quiet):
         top = name.split(".")[0]
@@ -350,10 +350,10 @@ def _cmd_gallery(args):
 
     _opt("--per-label", args.per_label, integer=True, lo=1, hi=100)
     _opt("--T", args.T, positive=True, hi=1e6)
+    ds = _open_map(args.result)  # a folder or '.' is refused here, before naming the output
     out = _out_file("-o/--output", args.output or str(Path(args.result).with_name(
         Path(args.result).stem + "-gallery.png")), ".png")
-    rows = draw_gallery(_open_map(args.result), out, per_label=args.per_label, seed=args.seed,
-                        T=args.T)
+    rows = draw_gallery(ds, out, per_label=args.per_label, seed=args.seed, T=args.T)
     changed = [r for r in rows if r["label_again"] != r["label"]]
     print(f"wrote {out}: {len(rows)} paths, "
           f"{len(changed)} labelled differently when integrated again")
@@ -409,6 +409,8 @@ def _cmd_find(args):
     if args.trace_theta0:
         import time
 
+        if args.phidot0 is None:
+            raise UserError("give --phidot0 (--trace-theta0 traces theta0 and solves chidot0)")
         start, stop, num = args.trace_theta0
         t0 = time.perf_counter()
         rows = trace(n, np.linspace(start, stop, int(num)), launch, args.bracket)
@@ -630,7 +632,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("-q", "--quiet", action="count", default=0,
                    help="only errors and the path written")
     s.add_argument("-v", "--verbose", action="count", default=0,
-                   help="also a line as launches finish (-vv: and dask's own log lines)")
+                   help="also a line as launches finish (-vv: and this process's dask logs)")
     s.set_defaults(func=_cmd_sweep)
 
     p = cmd("plot", help="draw a regime map (PNG) from a sweep's netCDF file")

@@ -134,7 +134,10 @@ def format_table(df, fmt: str = "table") -> str:
     "launches"})."""
     if fmt not in ("table", "csv", "json"):
         raise InputError(f"unknown format {fmt!r}; use table, csv or json")
-    const = df.attrs.get("common", _constant_columns(df))
+    # query() names the columns common to every match; a frame cut from it keeps that list
+    # only where it still holds (the column is there and constant)
+    const = [c for c in df.attrs.get("common", _constant_columns(df))
+             if c in df.columns and len(df) and df[c].nunique(dropna=False) == 1]
     common = {c: (df[c].iloc[0].item() if hasattr(df[c].iloc[0], "item") else df[c].iloc[0])
               for c in const}
     body = df.drop(columns=const)

@@ -195,9 +195,12 @@ def label_fields(obs: np.ndarray, flat_face_theta, th: Thresholds = Thresholds()
         # turn near 180 deg per cycle: each cycle is half of an oval that precesses slowly
         oval = is_star & (n_sides < th.star_min_sides)
     polygonal &= ~(petals | oval)
-    # a star {p/q} steps over q >= 2 corners; its best fit {3/1} is a triangle (the nearest
-    # whole n says so: a turn of 125-130 deg per cycle is a triangle drifting round)
-    label[is_star & polygonal & ((star_q >= 2) | (nn < 3))] = CODE["star"]
+    # a star {p/q} steps over q >= 2 corners. A best fit {p/1} (a turn just over 125 deg with
+    # the default max_star_points; wider with a smaller one) is no star: a triangle drifting
+    # round where the nearest whole n is 3, else (n under 2.5, no star within max_star_points)
+    # a rosette, as rule 7 calls turns over 125 deg without a star's corners
+    label[is_star & polygonal & (star_q >= 2)] = CODE["star"]
+    label[is_star & polygonal & (star_q < 2) & (nn < 3)] = CODE["rosette"]
     # no distinct corners (or too many): a circle if the path stays near one circle; a rosette if
     # it loops, makes petals or turns more than a star's worth per cycle (ovals, rounded stars);
     # else a rounded polygon, named by its nearest whole n like any other

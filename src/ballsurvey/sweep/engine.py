@@ -159,23 +159,31 @@ class _NoSigint:
 
 
 class _DeferSigint:
-    """Hold a Ctrl-C back while a part is written and counted (main thread only), then raise
-    it: a part cut short is not on disk, but its launches were counted as kept."""
+    """Hold a Ctrl-C back while a part is written and counted (main thread only), then hand it
+    to the handler that was there: a part cut short is not on disk, but its launches were
+    counted as kept. An ignored SIGINT (while an interrupted run saves, or in a background job)
+    stays ignored; a Ctrl-C during a write that fails is still delivered."""
 
     def __enter__(self):
         self.old, self.hit = None, False
         if threading.current_thread() is threading.main_thread():
-            self.old = signal.signal(signal.SIGINT, self._hold)
+            old = signal.getsignal(signal.SIGINT)
+            if old is not signal.SIG_IGN and old is not None:
+                self.old = signal.signal(signal.SIGINT, self._hold)
         return self
 
     def _hold(self, signum, frame):
         self.hit = True
 
     def __exit__(self, *exc):
-        if self.old is not None:
-            signal.signal(signal.SIGINT, self.old)
-        if self.hit and exc[0] is None:
-            raise KeyboardInterrupt
+        if self.old is None:
+            return
+        signal.signal(signal.SIGINT, self.old)
+        if self.hit:
+            if callable(self.old):  # Python's (raises KeyboardInterrupt) or the caller's own
+                self.old(signal.SIGINT, None)
+            else:  # SIG_DFL: what it would have done, as Python reports it
+                raise KeyboardInterrupt
 
 
 def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=None,

@@ -179,12 +179,20 @@ def run_dask(client, spec: Spec, chunks: list, todo: list, finished, wait_s: flo
             fut.release()
 
 
-def _ignore_interrupts():
-    """On a worker of a local cluster (its main thread): SIGINT ignored."""
-    import signal
+def _ignore_interrupts_plugin():
+    """A dask worker plugin: SIGINT ignored on every worker of a local cluster, those started
+    later included (set up in the worker's main thread)."""
+    from distributed.diagnostics.plugin import WorkerPlugin
 
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    return True
+    class IgnoreInterrupts(WorkerPlugin):
+        name = "ballsurvey-ignore-sigint"
+
+        def setup(self, worker):
+            import signal
+
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    return IgnoreInterrupts()
 
 
 @contextmanager
@@ -213,8 +221,9 @@ def dask_client(scheduler: str | None = None, workers: int | None = None,
                                silence_logs=logging.ERROR)
         client = Client(cluster)
         # a Ctrl-C at the terminal reaches every process of the group: the workers of this
-        # cluster leave it to this process, which keeps what came back and closes them
-        client.run(_ignore_interrupts)
+        # cluster leave it to this process, which keeps what came back and closes them (a
+        # worker plugin: a worker started again after a loss ignores it too)
+        client.register_plugin(_ignore_interrupts_plugin())
     try:
         yield client
     finally:
