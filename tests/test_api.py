@@ -96,6 +96,12 @@ def test_frames_cut_from_a_query_format_as_they_are(mem_map):
     assert json.loads(format_table(df[df.theta0_deg > 100], "json"))["launches"] == []
 
 
+def test_numpy_scalars_and_0d_arrays_are_numbers(mem_map):
+    n = len(ballsurvey.query(mem_map, n_sides=4))
+    assert len(ballsurvey.query(mem_map, n_sides=np.array(4))) == n
+    assert len(ballsurvey.query(mem_map, n_sides=np.int64(4), limit=np.array(1))) == min(n, 1)
+
+
 def test_a_binary_file_as_a_spec_is_an_input_error(tmp_path):
     p = tmp_path / "m.toml"
     p.write_bytes(b"\x89HDF\r\n\x1a\n\x00\xff\xfe")
@@ -214,6 +220,7 @@ def map_file(tmp_path_factory):
     (["query", "MAP"], "one of the arguments --shape --n-sides is required"),
     (["sweep", "MAP"], "not a text file (a sweep spec is TOML text)"),
     (["gallery", "MAP", "--per-label", "0"], "--per-label: must be >= 1"),
+    (["query", "MAP", "--n-sides", "2"], "--n-sides: must be >= 3"),
     (["find", "--shape", "square", "--theta0-deg", "-5", "--phidot0", "-3", "-o", "x.csv"],
      "-o/--output goes with --trace-theta0"),
 ])

@@ -569,3 +569,13 @@ def test_a_held_ctrl_c_goes_to_the_handler_that_was_there():
             os.kill(os.getpid(), signal.SIGINT)
             raise OSError(28, "No space left on device")
     assert signal.getsignal(signal.SIGINT) is old
+
+
+def test_a_point_out_of_bounds_is_named(tmp_path, capsys, monkeypatch):
+    (tmp_path / "p.toml").write_text(
+        '[[points]]\nname = "ok"\ntheta0_deg = 5.0\nthetadot0 = 0.0\nchidot0 = 4.0\n'
+        'phidot0 = -3.0\n[[points]]\nname = "fast"\ntheta0_deg = 5.0\nthetadot0 = 0.0\n'
+        'chidot0 = 4.0\nphidot0 = -3e4\n[run]\nT = 2.0\ndt = 1e-3\n'
+        '[output]\nfile = "p.nc"\n')
+    line = one_line_exit_2(capsys, ["sweep", "p.toml"], tmp_path, monkeypatch)
+    assert "[[points]] 'fast' phidot0: must be within +-1000 rad/s" in line, line

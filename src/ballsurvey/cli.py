@@ -209,9 +209,13 @@ def _quiet_dask() -> None:
     tornado a traceback from inside distributed when Ctrl-C lands in one of its waits: both
     after our line, and neither says anything to act on."""
     import logging
+    import warnings
 
     import distributed  # noqa: F401
 
+    # a Ctrl-C inside one of distributed's waits leaves a coroutine unawaited: Python warns
+    for module in ("tornado", "distributed", "asyncio"):
+        warnings.filterwarnings("ignore", category=RuntimeWarning, module=module)
     quiet = {"distributed": logging.CRITICAL, "tornado": logging.CRITICAL,
              "asyncio": logging.CRITICAL}
     for name in list(logging.root.manager.loggerDict) + list(quiet):
@@ -335,6 +339,7 @@ def _cmd_query(args):
     limit = _opt("--limit", args.limit, integer=True, lo=1)
     if limit is None:
         limit = DEFAULT_LIMIT
+    _opt("--n-sides", args.n_sides, integer=True, lo=3)
     df = query(_open_map(args.result), shape=args.shape, n_sides=args.n_sides, limit=limit,
                max_n_error=args.max_n_error, max_closure=args.max_closure)
     print(format_table(df, args.format), flush=True)

@@ -68,6 +68,8 @@ def number(name: str, v, *, positive: bool = False, nonnegative: bool = False,
         try:  # numpy scalars
             import numpy as np
 
+            if isinstance(v, np.ndarray) and v.ndim == 0:
+                v = v[()]  # a 0-d array: its scalar
             if isinstance(v, np.generic) and np.issubdtype(type(v), np.number):
                 v = v.item()
             else:
