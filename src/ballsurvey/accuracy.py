@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from .ball import Ball
-from .classify.labels import LABELS, SHAPES, Thresholds
+from .classify.labels import LABELS, SHAPES, Thresholds, fold_deg
 from .classify.observer import N_OBS
 from .compose import OBSERVER, classify, run_launches
 from .integrate import ensemble
@@ -198,7 +198,7 @@ def quadrature_check(n=60, seed=3, T=20.0, dt=1e-4) -> dict:
             w = worst[k]
             w["period_rel"] = max(w["period_rel"],
                                   abs(r["theta_period_s"][i] / qs["theta_period_s"] - 1))
-            dturn = (r["turn_per_cycle_deg"][i] - qs["turn_per_cycle_deg"] + 180) % 360 - 180
+            dturn = fold_deg(r["turn_per_cycle_deg"][i] - qs["turn_per_cycle_deg"])
             w["turn_deg"] = max(w["turn_deg"], abs(dturn))
             w["theta_max_deg"] = max(w["theta_max_deg"],
                                      abs(r["theta_max_deg"][i] - qs["theta_max_deg"]))
@@ -245,7 +245,7 @@ def near_vertical_check(n=40, seed=5, T=20.0) -> dict:
         fixed_frame += bool(runs["rk4 full"]["formulation"][i])
         n_q = 360.0 / abs(qs["turn_per_cycle_deg"])
         for k, r in runs.items():
-            dturn = (r["turn_per_cycle_deg"][i] - qs["turn_per_cycle_deg"] + 180) % 360 - 180
+            dturn = fold_deg(r["turn_per_cycle_deg"][i] - qs["turn_per_cycle_deg"])
             worst[k]["turn_deg"] = max(worst[k]["turn_deg"], abs(dturn))
             worst[k]["n_sides"] = max(worst[k]["n_sides"], abs(r["n_sides"][i] - n_q))
             # the n-region (round n: triangle, square, ...) the launch is put in, where the

@@ -247,6 +247,7 @@ def sweep_summary(path, n_launches: int, report: dict) -> str:
         codes = ds.label.values.ravel()
         fallback = int((ds.formulation.values == 1).sum()) if "formulation" in ds else None
         title = ds.attrs.get("title", "")
+        points = "launch" in ds.dims  # named points: a table, no plot
     counts = np.bincount(codes[(codes >= 0) & (codes < len(LABELS))].astype(int),
                          minlength=len(LABELS))
     shapes = ", ".join(f"{w} {counts[i]}" for i, w in enumerate(LABELS)
@@ -262,14 +263,11 @@ def sweep_summary(path, n_launches: int, report: dict) -> str:
         lines.append(f"  integrated again in the fixed frame (near the vertical): {fallback}")
     best = next((w for w in ("square", "triangle", "ngon", "star", "circle")
                  if counts[LABELS.index(w)]), None)
-    with xr.open_dataset(path) as ds:
-        points = "launch" in ds.dims  # named points: a table, no plot
     steps = [] if points else [f"ballsurvey plot {path}"]
     if best:
         steps.append(f"ballsurvey query {path} --shape {best}")
-    nxt = "  next: " + "   |   ".join(steps) if steps else ""
-    if nxt:
-        lines.append(nxt)
+    if steps:
+        lines.append("  next: " + "   |   ".join(steps))
     return "\n".join(lines)
 
 

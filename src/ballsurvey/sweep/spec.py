@@ -190,15 +190,12 @@ def _ball(src, table) -> Ball:
 def _check_bounds(src, where, columns):
     """Launch rates and heading within `limits.LAUNCH_BOUNDS` (columns: name -> values; a
     points table's `name` column names the point at fault)."""
-    for k, (bound, _) in limits.LAUNCH_BOUNDS.items():
+    for k in limits.LAUNCH_BOUNDS:
         vals = np.asarray(columns.get(k, ()), dtype=float)
-        if vals.size and not np.abs(vals).max() <= bound:
+        if vals.size:  # the largest in magnitude stands for them all
             i = int(np.argmax(np.abs(vals)))
             at = f"{where} {str(columns['name'][i])!r}" if "name" in columns else where
-            try:
-                limits.launch_value(k, vals[i])
-            except InputError as exc:
-                _err(src, f"{at} {k}", str(exc).split(": ", 1)[1])
+            _limit(src, limits.launch_value, k, vals[i], f"{at} {k}")
 
 
 def _check_tilts(src, where, theta0_deg, balls_flat_deg):
