@@ -59,11 +59,11 @@ title = "fallback threshold"
 name = "grazing"
 theta0_deg = -5.0
 thetadot0 = 0.0
-chidot0 = 3.5
+chidot0 = 3.2
 phidot0 = -3.0
 [run]
 T = 20.0
-dt = 1e-4
+dt = 1e-3
 {classify}
 [output]
 file = "x.nc"
@@ -73,7 +73,8 @@ file = "x.nc"
 @pytest.mark.parametrize("classify,formulation", [("", 1),
                                                   ("[classify]\nmax_energy_drift = 1e-3", 0)])
 def test_defect_fallback_uses_the_spec_thresholds(tmp_path, classify, formulation):
-    # (-5 deg, 3.5, -3) grazes the vertical (89.88 deg); RK4 at 1e-4 s drifts 5e-4 in energy there.
+    # (-5 deg, 3.2, -3) reaches 88.2 deg (under NEAR_VERTICAL_THETA, which would send it to the
+    # fixed frame whatever the thresholds); RK4 at 1e-3 s drifts 1.8e-4 in energy there.
     # The default max_energy_drift (1e-4) sends it to the fixed frame; a spec that allows 1e-3 keeps
     # it in the Euler form (before: the fallback always used the class default)
     text = SPEC.format(classify=classify)
@@ -82,8 +83,8 @@ def test_defect_fallback_uses_the_spec_thresholds(tmp_path, classify, formulatio
     spec = load_spec(path)
     f = compute_chunk(spec.text, str(path), 0, 1, parallel=False)
     assert f["formulation"][0] == formulation
-    res = compose.run_launches(launch_state(-5.0, 0.0, 3.5, -3.0, TU), P[:, None],
-                               StepPlan(20.0, 1e-4, TU), fallback=False)
+    res = compose.run_launches(launch_state(-5.0, 0.0, 3.2, -3.0, TU), P[:, None],
+                               StepPlan(20.0, 1e-3, TU), fallback=False)
     assert compose.needs_fallback(res)[0]
     assert not compose.needs_fallback(res, Thresholds(max_energy_drift=1e-3))[0]
 

@@ -141,7 +141,11 @@ def label_fields(obs: np.ndarray, flat_face_theta, th: Thresholds = Thresholds()
         # chart-free alternative: mean folded rotation of the chord between successive maxima;
         # used where the Euler chart was left (fixed-frame integration through theta = 90 deg)
         chord_turn = np.degrees(o[ob.O_CR_SUM] / o[ob.O_CR_N])
-        turn = np.where(chart_free, chord_turn, turn)
+        # better still where the path's heading at every theta maximum was well defined: its
+        # folded change between maxima (it does not shrink with the chord)
+        heading_turn = np.where(o[ob.O_HD_N] >= n_cyc, np.degrees(o[ob.O_HD_SUM] / o[ob.O_HD_N]),
+                                chord_turn)
+        turn = np.where(chart_free, heading_turn, turn)
         turn = np.where(has, turn, np.nan)
         abs_turn = np.abs(turn)
         n_sides = 360.0 / abs_turn

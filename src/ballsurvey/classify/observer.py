@@ -51,6 +51,8 @@ SLOTS = (
     "rc_x", "rc_y", "acc_r_min", "acc_r_max", "cyc_r_min", "cyc_r_max",
     "n_min", "xm_last", "ym_last", "cyc_side",
     "thd0", "thdd0",
+    "p_sth", "p_cth", "p_chd", "p_u", "p_w", "p_psid", "psi_last",
+    "acc_nsamp", "cyc_nsamp", "hd_sum", "hd_n", "p_sdd",
 )
 N_OBS = len(SLOTS)
 (O_TH_MIN, O_TH_MAX, O_E0, O_J0, O_R0, O_DE, O_DJ, O_DR, O_FRIC, O_NMIN,
@@ -61,7 +63,9 @@ N_OBS = len(SLOTS)
  O_CR_SUM, O_CR_N, O_CR_ANG, O_A_RAW, O_C_RAW,
  O_RC_X, O_RC_Y, O_A_RMIN, O_A_RMAX, O_C_RMIN, O_C_RMAX,
  O_NMIN_EV, O_XM, O_YM, O_C_SIDE,
- O_THD0, O_THDD0) = range(N_OBS)
+ O_THD0, O_THDD0,
+ O_P_STH, O_P_CTH, O_P_CHD, O_P_U, O_P_W, O_P_PSID, O_PSIL,
+ O_A_NSAMP, O_C_NSAMP, O_HD_SUM, O_HD_N, O_P_SDD) = range(N_OBS)
 
 jit = njit(cache=True, nogil=True, error_model="numpy")  # stamped cache: _jit.py
 
@@ -72,6 +76,80 @@ def _quadrant(u, w):
     if w >= 0.0:
         return 0.0 if u > 0.0 else 1.0
     return 2.0 if u <= 0.0 else 3.0
+
+
+@jit
+def _wrap(a):
+    """a folded into [-pi, pi)."""
+    return a - 2.0 * math.pi * math.floor((a + math.pi) / (2.0 * math.pi))
+
+
+@jit
+def _hermite(tau, f0, f1, m0, m1):
+    """The cubic Hermite interpolant through f0, f1 with slopes m0, m1 (per unit tau) at tau."""
+    t2 = tau * tau
+    t3 = t2 * tau
+    return ((2.0 * t3 - 3.0 * t2 + 1.0) * f0 + (t3 - 2.0 * t2 + tau) * m0
+            + (3.0 * t2 - 2.0 * t3) * f1 + (t3 - t2) * m1)
+
+
+#: bisections that locate a theta extremum inside a sample interval (2^-48 of it)
+LOCATE_ITERATIONS = 48
+#: the path's speed (units of sqrt(g a)) below which its heading at a theta maximum is not
+#: trusted (a ball rocking in a plane stops there): the heading chi is used alone
+HEADING_SPEED_MIN = 1e-3
+
+
+@jit
+def _locate(obs, i, t, x, y, sth, cth, chi, thd, chd, u, w, psid, sdd):
+    """A theta extremum between the previous sample and this one, located on the cubic Hermite
+    interpolants of the sample pair, chart-free (valid through the vertical).
+
+    The extremum is the root of the rate of sin(theta), cos(theta) thetadot (the vertical
+    component of the symmetry axis's rate: smooth where the Euler chart is not), interpolated
+    with its own rate sdd; there theta is read from sin(theta), interpolated with its rate, and
+    the length of the axis's horizontal part q = cos(theta) (cos chi, sin chi), itself
+    interpolated with its rate.
+    Returns (tau, t, theta, chi, x, y, psi, speed) at the extremum: chi on the branch of the
+    previous sample's, G's position from its velocity, the path's heading psi (the direction of
+    G's velocity, smooth near the vertical where chi swings by half a turn within milliseconds)
+    and G's speed."""
+    t0 = obs[O_P_T, i]
+    h = t - t0
+    s0, s1 = obs[O_P_STH, i], sth
+    c0 = obs[O_P_CTH, i]
+    m0 = c0 * obs[O_P_THD, i] * h
+    m1 = cth * thd * h
+    # the rate changes sign over [0, 1] (thetadot did): bisect its interpolant
+    lo, hi = 0.0, 1.0
+    g_lo = m0
+    n0, n1 = obs[O_P_SDD, i] * h * h, sdd * h * h
+    for _ in range(LOCATE_ITERATIONS):
+        mid = 0.5 * (lo + hi)
+        g = _hermite(mid, m0, m1, n0, n1)
+        if (g > 0.0) == (g_lo > 0.0):
+            lo, g_lo = mid, g
+        else:
+            hi = mid
+    tau = 0.5 * (lo + hi)
+    s_ev = _hermite(tau, s0, s1, m0, m1)
+    chi0 = obs[O_P_CHI, i]
+    cc0, sc0, cc1, sc1 = math.cos(chi0), math.sin(chi0), math.cos(chi), math.sin(chi)
+    thd0, chd0 = obs[O_P_THD, i], obs[O_P_CHD, i]
+    qx = _hermite(tau, c0 * cc0, cth * cc1, (-s0 * thd0 * cc0 - c0 * chd0 * sc0) * h,
+                  (-sth * thd * cc1 - cth * chd * sc1) * h)
+    qy = _hermite(tau, c0 * sc0, cth * sc1, (-s0 * thd0 * sc0 + c0 * chd0 * cc0) * h,
+                  (-sth * thd * sc1 + cth * chd * cc1) * h)
+    th_ev = math.atan2(s_ev, math.sqrt(qx * qx + qy * qy))
+    chi_ev = chi0 + _wrap(math.atan2(qy, qx) - chi0)
+    u0, w0 = obs[O_P_U, i], obs[O_P_W, i]
+    x_ev = _hermite(tau, obs[O_P_X, i], x, (u0 * cc0 - w0 * sc0) * h, (u * cc1 - w * sc1) * h)
+    y_ev = _hermite(tau, obs[O_P_Y, i], y, (u0 * sc0 + w0 * cc0) * h, (u * sc1 + w * cc1) * h)
+    psi0 = chi0 + math.atan2(w0, u0)
+    dpsi = _wrap(chi + math.atan2(w, u) - psi0)
+    psi_ev = psi0 + _hermite(tau, 0.0, dpsi, obs[O_P_PSID, i] * h, psid * h)
+    speed = min(math.sqrt(u0 * u0 + w0 * w0), math.sqrt(u * u + w * w))
+    return tau, t0 + tau * h, th_ev, chi_ev, x_ev, y_ev, psi_ev, speed
 
 
 @jit
@@ -97,6 +175,7 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
         normal = normal_force(sth, cth, thd, thdd, c)  # N / (M g), Eq. (20)
         fric = (math.sqrt(ah_par * ah_par + ah_perp * ah_perp) / normal if normal > 0.0
                 else math.inf)
+    sdd = cth * thdd - sth * thd * thd  # the second derivative of sin(theta)
     # --- invariants -----------------------------------------------------------------------------
     e = energy(sth, cth, thd, chd, phd, c, A, B)
     jel = jellett(sth, cth, thd, chd, phd, c, A, B)
@@ -129,6 +208,11 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
         obs[O_NMIN_EV, i] = 0.0
         obs[O_THD0, i] = abs(thd)
         obs[O_THDD0, i] = abs(thdd)
+        obs[O_PSIL, i] = math.nan
+        obs[O_A_NSAMP, i] = 0.0
+        obs[O_HD_SUM, i] = 0.0
+        obs[O_HD_N, i] = 0.0
+        obs[O_C_NSAMP, i] = math.nan
     else:
         obs[O_TH_MIN, i] = min(obs[O_TH_MIN, i], th)
         obs[O_TH_MAX, i] = max(obs[O_TH_MAX, i], th)
@@ -160,10 +244,11 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
         if r > obs[O_A_RMAX, i]:
             obs[O_A_RMAX, i] = r
         # --- theta minimum: thetadot turns from - to + (where the path turns: a corner) -------
+        obs[O_A_NSAMP, i] += 1.0
         if obs[O_P_THD, i] < 0.0 and thd >= 0.0:
-            f = obs[O_P_THD, i] / (obs[O_P_THD, i] - thd)
-            xm = obs[O_P_X, i] + f * (x - obs[O_P_X, i])
-            ym = obs[O_P_Y, i] + f * (y - obs[O_P_Y, i])
+            _, _, th_ev, _, xm, ym, _, _ = _locate(obs, i, t, x, y, sth, cth, chi, thd, chd, u,
+                                                   w, psid, sdd)
+            obs[O_TH_MIN, i] = min(obs[O_TH_MIN, i], th_ev)
             if obs[O_NMIN_EV, i] >= 1.0:
                 obs[O_C_SIDE, i] = math.hypot(xm - obs[O_XM, i], ym - obs[O_YM, i])
             obs[O_XM, i], obs[O_YM, i] = xm, ym
@@ -171,11 +256,25 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
         # --- theta maximum: thetadot turns from + to - ----------------------------------------
         pthd = obs[O_P_THD, i]
         if pthd > 0.0 and thd <= 0.0:
-            f = pthd / (pthd - thd)
-            t_ev = obs[O_P_T, i] + f * (t - obs[O_P_T, i])
-            chi_ev = obs[O_P_CHI, i] + f * (chi - obs[O_P_CHI, i])
-            x_ev = obs[O_P_X, i] + f * (x - obs[O_P_X, i])
-            y_ev = obs[O_P_Y, i] + f * (y - obs[O_P_Y, i])
+            _, t_ev, th_ev, chi_ev, x_ev, y_ev, psi_ev, speed_ev = _locate(
+                obs, i, t, x, y, sth, cth, chi, thd, chd, u, w, psid, sdd)
+            obs[O_TH_MAX, i] = max(obs[O_TH_MAX, i], th_ev)
+            if speed_ev > HEADING_SPEED_MIN:
+                if obs[O_NMAX, i] >= 1.0 and math.isfinite(obs[O_PSIL, i]):
+                    # the heading turns by chi's change over a cycle, to whole turns (the reduced
+                    # state repeats); chi, read at the located time near the vertical, can be off
+                    # by much of its swing there: its change is taken to the nearest value that
+                    # agrees with the path heading's, which is smooth
+                    dchi = chi_ev - obs[O_CHIL, i]
+                    dpsi = psi_ev - obs[O_PSIL, i]
+                    chi_ev = obs[O_CHIL, i] + dchi + _wrap(dpsi - dchi)
+                    # the heading's turn folded, summed: a chart-free net turn that, unlike
+                    # the chord's, does not depend on the chord's length
+                    obs[O_HD_SUM, i] += _wrap(dpsi)
+                    obs[O_HD_N, i] += 1.0
+                obs[O_PSIL, i] = psi_ev
+            else:
+                obs[O_PSIL, i] = math.nan
             if obs[O_NMAX, i] == 0.0:
                 obs[O_T1, i], obs[O_CHI1, i], obs[O_X1, i], obs[O_Y1, i] = t_ev, chi_ev, x_ev, y_ev
             else:  # the accumulators hold one complete cycle
@@ -187,6 +286,7 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
                 obs[O_C_WIND, i] = obs[O_A_QUART, i] / 4.0
                 obs[O_C_DUR, i] = dur
                 obs[O_C_RAW, i] = obs[O_A_RAW, i]
+                obs[O_C_NSAMP, i] = obs[O_A_NSAMP, i]
                 obs[O_XP, i], obs[O_YP, i] = obs[O_XL, i], obs[O_YL, i]
                 if math.isfinite(obs[O_RC_X, i]):  # the centre was known for the whole cycle
                     obs[O_C_RMIN, i] = obs[O_A_RMIN, i]
@@ -217,6 +317,7 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
             obs[O_A_VMIN, i] = speed
             obs[O_A_VINT, i] = 0.0
             obs[O_A_QUART, i] = 0.0
+            obs[O_A_NSAMP, i] = 0.0
             obs[O_A_RMIN, i] = math.inf
             obs[O_A_RMAX, i] = -math.inf
     obs[O_P_THD, i] = thd
@@ -225,6 +326,13 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
     obs[O_P_X, i] = x
     obs[O_P_Y, i] = y
     obs[O_P_QUAD, i] = quad
+    obs[O_P_STH, i] = sth
+    obs[O_P_CTH, i] = cth
+    obs[O_P_CHD, i] = chd
+    obs[O_P_U, i] = u
+    obs[O_P_W, i] = w
+    obs[O_P_PSID, i] = psid
+    obs[O_P_SDD, i] = sdd
 
 
 @jit
