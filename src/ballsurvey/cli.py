@@ -246,6 +246,12 @@ def sweep_summary(path, n_launches: int, report: dict) -> str:
     with xr.open_dataset(path) as ds:
         codes = ds.label.values.ravel()
         fallback = int((ds.formulation.values == 1).sum()) if "formulation" in ds else None
+        sparse = 0
+        if "samples_per_cycle" in ds:
+            floor = ds.attrs.get("classify_min_samples_per_cycle", 20.0)
+            with np.errstate(invalid="ignore"):
+                sparse = int(((ds.samples_per_cycle.values < floor)
+                              & (ds.label.values == LABELS.index("unresolved"))).sum())
         title = ds.attrs.get("title", "")
         points = "launch" in ds.dims  # named points: a table, no plot
     counts = np.bincount(codes[(codes >= 0) & (codes < len(LABELS))].astype(int),
@@ -259,6 +265,9 @@ def sweep_summary(path, n_launches: int, report: dict) -> str:
              f"  shapes: {shapes or 'none'}",
              f"  flagged (a status instead of a shape): {n_flag}" + (f" ({status})" if status
                                                                      else "")]
+    if sparse:
+        lines.append(f"  unresolved for too few observer samples per theta cycle (under "
+                     f"{floor:g}): {sparse}; lower [run] dt or observe_every")
     if fallback is not None:
         lines.append(f"  integrated again in the fixed frame (near the vertical): {fallback}")
     best = next((w for w in ("square", "triangle", "ngon", "star", "circle")

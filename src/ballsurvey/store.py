@@ -47,6 +47,8 @@ RESULT_VARIABLES = {
     "star_points": ("i2", "1", "p of the star polygon {p/q} (0 if not a star)", {}),
     "star_step": ("i2", "1", "q of the star polygon {p/q} (0 if not a star)", {}),
     "n_theta_cycles": ("i4", "1", "complete theta cycles observed", {}),
+    "samples_per_cycle": ("f8", "1", "observer samples per theta cycle (below the classifier's "
+                          "min_samples_per_cycle: unresolved)", {}),
     "theta_min_deg": ("f8", "degree", "smallest tilt theta reached", {}),
     "theta_max_deg": ("f8", "degree", "largest tilt theta reached", {}),
     "max_friction_ratio": ("f8", "1", "largest friction demand |F_h|/N", {}),

@@ -60,6 +60,8 @@ class Thresholds:
     star_min_sides: float = 2.25
     #: |thetadot|, |thetadot'| at launch below it (a/g units) -> launched steady
     steady_rate_tol: float = 1e-8
+    #: observer samples per theta cycle below it -> unresolved (too few to see the path's shape)
+    min_samples_per_cycle: float = 20.0
 
     @classmethod
     def from_mapping(cls, mapping: dict) -> Thresholds:
@@ -171,6 +173,11 @@ def label_fields(obs: np.ndarray, flat_face_theta, th: Thresholds = Thresholds()
         # radial spread of the path about its orbit centre over a cycle (= over an orbit)
         r_lo, r_hi = o[ob.O_C_RMIN], o[ob.O_C_RMAX]
         roundness = (r_hi - r_lo) / (0.5 * (r_hi + r_lo))
+        # samples per theta cycle: those the observer saw in the last cycle, and pi times theta's
+        # range over the largest change of theta between samples (the count for a sinusoid);
+        # the smaller, since samples far apart can alias a cycle into several
+        by_rate = math.pi * (o[ob.O_TH_MAX] - o[ob.O_TH_MIN]) / o[ob.O_THD_STEP]
+        samples = np.fmin(o[ob.O_C_NSAMP], by_rate)
 
     # steady rolling: launched at rest in theta with no theta acceleration, and theta stayed put
     # (a short run of any launch also keeps theta nearly still: that is `unresolved`, not steady)
@@ -225,6 +232,9 @@ def label_fields(obs: np.ndarray, flat_face_theta, th: Thresholds = Thresholds()
     label[retraced] = np.where(petal_cycle, CODE["rosette"], CODE["near_straight"])[retraced]
     label[~has] = CODE["unresolved"]
     label[n_cyc < th.min_cycles] = CODE["unresolved"]
+    with np.errstate(invalid="ignore"):
+        # too few samples a cycle to see corners, loops or the cycle itself (aliased): no shape
+        label[samples < th.min_samples_per_cycle] = CODE["unresolved"]
     label[steady] = CODE["circle"]
     # validity overrides shape, least specific first so the most basic failure wins
     label[o[ob.O_FRIC] > th.mu] = CODE["slipping"]
@@ -262,6 +272,7 @@ def label_fields(obs: np.ndarray, flat_face_theta, th: Thresholds = Thresholds()
         "star_points": np.where(label == CODE["star"], star_p, 0).astype(np.int16),
         "star_step": np.where(label == CODE["star"], star_q, 0).astype(np.int16),
         "n_theta_cycles": n_cyc.astype(np.int32),
+        "samples_per_cycle": np.where(has, samples, np.nan),
         "chord_turn_per_cycle_deg": turning(chord_turn),
         "theta_min_deg": np.degrees(o[ob.O_TH_MIN]),
         "theta_max_deg": np.degrees(o[ob.O_TH_MAX]),

@@ -5,7 +5,16 @@ state and its accelerations at each sample; it tracks
 
 * theta extrema, the invariants' drift (energy, Jellett, Routh), friction demand |F_h|/N and min N;
 * theta maxima (events where thetadot turns from + to -): the first and last event's time, heading
-  chi and centre position, and the previous one (for the chord between successive maxima);
+  chi and centre position, and the previous one (for the chord between successive maxima).
+  Events are located between the two samples that bracket them, on cubic Hermite interpolants
+  built from each sample's values and rates, chart-free: the root of the rate of sin(theta) (the
+  vertical component of the symmetry axis), theta from sin(theta) and the length of the axis's
+  horizontal part, G's position from its velocity. Near the vertical chi swings by half a turn
+  within milliseconds, so chi read at an event is ill-conditioned; the path's heading psi (the
+  direction of G's velocity) is smooth there, and over a cycle both turn by the same angle to
+  whole turns (the reduced state repeats), so chi's change between events is taken to the
+  nearest value that agrees with psi's. The folded change of psi between events is summed too:
+  a chart-free net turn that does not shrink with the chord;
 * the rotation of the chord between successive theta maxima, folded into (-pi, pi] and summed:
   a second, chart-free measure of the net turn (it is what the fixed-frame integration uses);
 * per theta cycle (between successive maxima): the peak heading rate of the path, the total
@@ -19,7 +28,9 @@ state and its accelerations at each sample; it tracks
 * theta minima (thetadot turning from - to +), where the path turns: the distance between
   successive minima is the corner-to-corner side of the polygon;
 * |thetadot| and |thetadot'| at launch: a launch at rest in theta with no theta acceleration sits
-  on a steady circle.
+  on a steady circle;
+* the samples seen per theta cycle and the largest change of theta between samples (too few
+  samples a cycle, and the path's shape cannot be seen: the labeller says `unresolved`).
 
 Over one theta cycle the reduced state (theta, thetadot, chidot, phidot) returns to itself, so the
 path repeats rotated by the change of chi over the cycle: the net turn per cycle is
@@ -52,7 +63,7 @@ SLOTS = (
     "n_min", "xm_last", "ym_last", "cyc_side",
     "thd0", "thdd0",
     "p_sth", "p_cth", "p_chd", "p_u", "p_w", "p_psid", "psi_last",
-    "acc_nsamp", "cyc_nsamp", "hd_sum", "hd_n", "p_sdd",
+    "acc_nsamp", "cyc_nsamp", "hd_sum", "hd_n", "p_sdd", "thd_step_max",
 )
 N_OBS = len(SLOTS)
 (O_TH_MIN, O_TH_MAX, O_E0, O_J0, O_R0, O_DE, O_DJ, O_DR, O_FRIC, O_NMIN,
@@ -65,7 +76,7 @@ N_OBS = len(SLOTS)
  O_NMIN_EV, O_XM, O_YM, O_C_SIDE,
  O_THD0, O_THDD0,
  O_P_STH, O_P_CTH, O_P_CHD, O_P_U, O_P_W, O_P_PSID, O_PSIL,
- O_A_NSAMP, O_C_NSAMP, O_HD_SUM, O_HD_N, O_P_SDD) = range(N_OBS)
+ O_A_NSAMP, O_C_NSAMP, O_HD_SUM, O_HD_N, O_P_SDD, O_THD_STEP) = range(N_OBS)
 
 jit = njit(cache=True, nogil=True, error_model="numpy")  # stamped cache: _jit.py
 
@@ -212,6 +223,7 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
         obs[O_A_NSAMP, i] = 0.0
         obs[O_HD_SUM, i] = 0.0
         obs[O_HD_N, i] = 0.0
+        obs[O_THD_STEP, i] = 0.0
         obs[O_C_NSAMP, i] = math.nan
     else:
         obs[O_TH_MIN, i] = min(obs[O_TH_MIN, i], th)
@@ -245,6 +257,7 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
             obs[O_A_RMAX, i] = r
         # --- theta minimum: thetadot turns from - to + (where the path turns: a corner) -------
         obs[O_A_NSAMP, i] += 1.0
+        obs[O_THD_STEP, i] = max(obs[O_THD_STEP, i], abs(thd) * (t - obs[O_P_T, i]))
         if obs[O_P_THD, i] < 0.0 and thd >= 0.0:
             _, _, th_ev, _, xm, ym, _, _ = _locate(obs, i, t, x, y, sth, cth, chi, thd, chd, u,
                                                    w, psid, sdd)
