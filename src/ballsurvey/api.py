@@ -213,14 +213,15 @@ def label_mask(ds: xr.Dataset, shape=None, n_sides: int | None = None) -> xr.Dat
 
 @xr.register_dataset_accessor("ballsurvey")
 class BallsurveyAccessor:
-    """`ds.ballsurvey`: a map's labels as words.
+    """`ds.ballsurvey`: a map's labels as words, on any map (importing `ballsurvey` registers it).
 
-    ds.ballsurvey.labels               words (object array) on the map's dimensions
-    ds.ballsurvey.mask(shape="square") boolean DataArray
-    ds.ballsurvey.where(shape="square", phidot0=-3)   the map with other launches masked (NaN,
-                                       label -1); axis keywords select one value of an axis
-    ds.ballsurvey.counts()             launches per label word (pandas Series)
-    ds.ballsurvey.query(shape="square")   the same DataFrame as ballsurvey.query
+    Examples
+    --------
+    >>> ds = ballsurvey.open_map("results/quick.nc")
+    >>> ds.ballsurvey.labels                     # a property: words on the map's dimensions
+    >>> ds.ballsurvey.counts()                   # launches per label word
+    >>> ds.ballsurvey.where(shape="square", phidot0=-3)
+    >>> ds.ballsurvey.to_dataframe()             # labels as a pandas categorical
     """
 
     def __init__(self, ds: xr.Dataset):
@@ -228,14 +229,20 @@ class BallsurveyAccessor:
 
     @property
     def labels(self) -> xr.DataArray:
+        """The label words (an object array) on the map's dimensions, named `label_word`; '' where
+        a cell was never written. A property: `ds.ballsurvey.labels`, no parentheses."""
         lab = self._ds.label
         return xr.DataArray(decode_label(lab.values), dims=lab.dims, coords=lab.coords,
                             name="label_word")
 
     def mask(self, shape=None, n_sides=None) -> xr.DataArray:
+        """True where the label is `shape` (a word or a list of words), or where the path closes
+        as a polygon with `n_sides` sides (a boolean DataArray on the map's dimensions)."""
         return label_mask(self._ds, shape, n_sides)
 
     def where(self, shape=None, n_sides=None, **at) -> xr.Dataset:
+        """The map with every other launch masked (NaN, label -1); axis keywords (`phidot0=-3`)
+        first select one value of an axis, as `ballsurvey.select` does."""
         ds = select(self._ds, **at) if at else self._ds
         m = label_mask(ds, shape, n_sides)
         out = ds.where(m)
@@ -244,6 +251,7 @@ class BallsurveyAccessor:
         return out
 
     def counts(self):
+        """Launches per label word present in the map (a pandas Series named `launches`)."""
         import pandas as pd
 
         codes = self._ds.label.values.ravel()
@@ -252,7 +260,32 @@ class BallsurveyAccessor:
         return pd.Series({w: int(c[i]) for i, w in enumerate(LABELS) if c[i]}, name="launches")
 
     def query(self, **kw):
+        """The same DataFrame as `ballsurvey.query(ds, **kw)`."""
         return query(self._ds, **kw)
+
+    def to_dataframe(self):
+        """The map as a pandas DataFrame, one row per launch, with every coded variable (`label`,
+        `corner_kind`, `formulation`: CF `flag_values` and `flag_meanings`) decoded to a pandas
+        categorical of its words (all the vocabulary's words as categories, in code order; a
+        cell never written is missing). `ds.to_dataframe()` gives the int8 codes instead."""
+        return decoded_frame(self._ds)
+
+
+def decoded_frame(ds: xr.Dataset):
+    """`ds.to_dataframe()` with each variable that has CF `flag_values`/`flag_meanings` as a
+    pandas Categorical of its words (see `BallsurveyAccessor.to_dataframe`)."""
+    import pandas as pd
+
+    df = ds.to_dataframe()
+    for name, var in ds.data_vars.items():
+        values, meanings = var.attrs.get("flag_values"), var.attrs.get("flag_meanings")
+        if name not in df or values is None or not meanings:
+            continue
+        words = str(meanings).split()
+        codes = np.asarray(values).astype(int).tolist()
+        word_of = dict(zip(codes, words))
+        df[name] = pd.Categorical(df[name].map(word_of), categories=words)
+    return df
 
 
 def select(ds: xr.Dataset, **at) -> xr.Dataset:
