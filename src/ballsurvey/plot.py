@@ -97,13 +97,19 @@ def _finite(v) -> bool:
         return False
 
 
-def _save(fig: Figure, out, dpi: int = 110):
-    """Write a figure in the format its file's suffix names (.png, .pdf or .svg)."""
+def figure_format(out) -> str:
+    """'png', 'pdf' or 'svg': the format a figure file's suffix names (InputError otherwise)."""
     from pathlib import Path
 
     suffix = Path(out).suffix.lower()
     if suffix not in FIGURE_SUFFIXES:
         raise InputError(f"{out}: a figure file ends in {', '.join(FIGURE_SUFFIXES)}")
+    return suffix[1:]
+
+
+def _save(fig: Figure, out, dpi: int = 110):
+    """Write a figure in the format its file's suffix names (.png, .pdf or .svg)."""
+    suffix = "." + figure_format(out)
     extra = {"pil_kwargs": {"optimize": True}} if suffix == ".png" else {}
     fig.savefig(out, dpi=dpi, format=suffix[1:], **extra)
     return out
@@ -143,7 +149,36 @@ def default_axes(ds: xr.Dataset, exclude=(), need: int = 2) -> tuple[str, ...]:
 
 def plot_map(ds: xr.Dataset, out, x: str | None = None, y: str | None = None,
              at: dict | None = None, facet: str | None = None, contours: bool = True):
-    """Categorical map of `label` over axes x (across) and y (up); facets along `facet`."""
+    """Draw a regime map: one colour per label over axes x (across) and y (up).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A map (`ballsurvey.open_map`, `ballsurvey.sweep`).
+    out : str or path
+        The file to write: .png, .pdf or .svg.
+    x, y : str, optional
+        The axes drawn across and up (default: the map's first two axes with more than one
+        value, in its own order of dimensions, whatever the grid sizes).
+    at : dict, optional
+        One value for each other axis, e.g. ``{"phidot0": -3}`` (within half a grid step).
+    facet : str, optional
+        One panel per value of this axis.
+    contours : bool
+        Draw the exact n = 3 and n = 4 curves.
+
+    Returns
+    -------
+    The file written.
+    """
+    figure_format(out)
+    return _save(map_figure(ds, x, y, at, facet, contours), out)
+
+
+def map_figure(ds: xr.Dataset, x: str | None = None, y: str | None = None,
+               at: dict | None = None, facet: str | None = None,
+               contours: bool = True) -> Figure:
+    """The figure `plot_map` writes (a matplotlib `Figure`, not yet saved)."""
     if "label" not in ds:
         raise InputError("the file has no 'label' variable (not a ballsurvey map?)")
     if "launch" in ds.dims:
@@ -207,7 +242,7 @@ def plot_map(ds: xr.Dataset, out, x: str | None = None, y: str | None = None,
         handles.append(Line2D([], [], color="k", lw=1.0,
                               label="exact triangle (n=3)\nand square (n=4)"))
     fig.legend(handles=handles, loc="outside right center", title="path shape", fontsize=9)
-    return _save(fig, out)
+    return fig
 
 
 # ----------------------------------------------------------------------------------------------
@@ -329,6 +364,13 @@ def plot_path(ds: xr.Dataset, out, ball: Ball | None = None, title: str | None =
     -------
     The file written.
     """
+    figure_format(out)
+    return _save(path_figure(ds, ball, title, panels), out, dpi=dpi)
+
+
+def path_figure(ds: xr.Dataset, ball: Ball | None = None, title: str | None = None,
+                panels: str = "all") -> Figure:
+    """The figure `plot_path` writes (a matplotlib `Figure`, not yet saved)."""
     from matplotlib.collections import LineCollection
     from matplotlib.lines import Line2D
 
@@ -369,7 +411,7 @@ def plot_path(ds: xr.Dataset, out, ball: Ball | None = None, title: str | None =
         ax.legend(loc="lower center", bbox_to_anchor=(0.5, 1.08), ncol=2, fontsize=7,
                   frameon=False, borderaxespad=0.0)
         fig.suptitle(title or launch_title(a), fontsize=7)
-        return _save(fig, out, dpi=dpi)
+        return fig
     ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.08), ncol=2, fontsize=8, frameon=False)
     ax1 = fig.add_subplot(gs[0, 1])
     ax1.plot(t, th, "k", lw=1)
@@ -401,7 +443,7 @@ def plot_path(ds: xr.Dataset, out, ball: Ball | None = None, title: str | None =
                                label="N")],
                loc="lower left", bbox_to_anchor=(1.12, 0.0), fontsize=8, frameon=False)
     fig.suptitle(title or launch_title(a), fontsize=11)
-    return _save(fig, out, dpi=dpi)
+    return fig
 
 
 def launch_title(attrs: dict) -> str:
