@@ -283,3 +283,16 @@ def test_labels_is_a_property_as_the_docs_write_it(small_map):
     root = Path(__file__).resolve().parents[1]
     for doc in [root / "README.md", *sorted((root / "docs").glob("*.md"))]:
         assert "ballsurvey.labels()" not in doc.read_text(), doc.name
+
+
+def test_a_reader_that_leaves_early_is_no_error(small_map):
+    """`ballsurvey query MAP ... | head -1`: the reader closes the pipe; no error line, exit 0."""
+    import subprocess
+    import sys
+
+    p = subprocess.Popen([sys.executable, "-m", "ballsurvey", "query", str(small_map),
+                          "--shape", "circle", "--all", "--format", "csv"],
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    p.stdout.close()  # before it writes anything
+    err = p.stderr.read().decode()
+    assert p.wait(timeout=120) == 0 and err == "", err

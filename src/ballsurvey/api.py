@@ -57,7 +57,7 @@ def _toml_value(v, where: str) -> str:
 
 
 def spec_to_toml(spec: dict) -> str:
-    """A spec given as a dict (the README's 'Sweep spec' layout) as TOML text."""
+    """A spec given as a dict (the layout of docs/specs.md) as TOML text."""
     if not isinstance(spec, dict):
         raise InputError(f"a spec is a path, TOML text or a dict, got {type(spec).__name__}")
     lines = []
@@ -104,16 +104,41 @@ def _spec_text(spec) -> tuple[str, str, bool]:
 def sweep(spec, *, output=None, resume: bool = False, force: bool = False,
           progress: bool | None = None, workers: int | None = None, scheduler: str | None = None,
           notice=None) -> xr.Dataset:
-    """Integrate and classify every launch of a spec; returns the map as an `xarray.Dataset`.
+    """Integrate and classify every launch of a spec; return the map as an `xarray.Dataset`.
 
-    spec: a path to a TOML file, TOML text, or a dict laid out like the TOML (README, 'Sweep
-    spec'). The file is written where `output` or the spec's `[output] file` says (a spec file
-    without one: `results/<name>.nc`) and opened, loaded into memory when small; TOML text or a
-    dict naming no file is computed in a private temporary folder and returned in memory (at
-    most 1e6 launches). resume, force: as `ballsurvey sweep --resume/--force`; rerunning a
-    finished spec just opens its file. workers / scheduler: a local dask cluster of that many
-    processes, or a running scheduler's address. Ctrl-C raises `SweepInterrupted` (finished work
-    is kept for `resume=True`)."""
+    Parameters
+    ----------
+    spec : str, path or dict
+        A path to a TOML file, TOML text, or a dict laid out like the TOML (the docs' 'Sweep
+        specs' page).
+    output : str or path, optional
+        Where to write the map; default: the spec's `[output] file` (a spec file without one:
+        `results/<name>.nc`). A relative path is relative to the current folder. TOML text or a
+        dict naming no file is computed in a private temporary folder and returned in memory
+        (at most 1e6 launches).
+    resume, force : bool
+        As `ballsurvey sweep --resume/--force`; rerunning a finished spec just opens its file.
+    progress : bool, optional
+        A progress bar on stderr (default: when stderr is a terminal).
+    workers : int, optional
+        Start a local dask cluster of that many worker processes.
+    scheduler : str, optional
+        The address of a running dask.distributed scheduler.
+    notice : callable, optional
+        Receives the run's one-line messages (compiling, parts computed again); default: print.
+
+    Returns
+    -------
+    xarray.Dataset
+        The map, loaded into memory when small.
+
+    Raises
+    ------
+    InputError
+        A problem with the spec (one line naming the key), before any work.
+    SweepInterrupted
+        Ctrl-C; the finished work is kept for `resume=True`.
+    """
     from .sweep import load_spec
     from .sweep.engine import UpToDate, check_output_path, dask_client, output_is_current, run_sweep
 
@@ -152,9 +177,25 @@ class _nothing:
 
 
 def open_map(path, load: bool | None = None) -> xr.Dataset:
-    """Open a ballsurvey map (a netCDF file written by `sweep`). load: read it into memory and
-    close the file (default: when it is under 256 MB); otherwise lazily (dask when installed).
-    Anything that is not a map raises InputError with one line."""
+    """Open a ballsurvey map (a netCDF file written by `sweep`).
+
+    Parameters
+    ----------
+    path : str or path
+        The .nc file.
+    load : bool, optional
+        Read it into memory and close the file (default: when it is under 256 MB); otherwise
+        open it lazily (with dask when installed).
+
+    Returns
+    -------
+    xarray.Dataset
+
+    Raises
+    ------
+    InputError
+        Anything that is not a map (a spec, a folder, another file), with one line.
+    """
     if not isinstance(path, (str, os.PathLike)):
         raise InputError(f"open_map: a path to a .nc file, got {type(path).__name__}")
     p = Path(path)
@@ -289,8 +330,11 @@ def decoded_frame(ds: xr.Dataset):
 
 
 def select(ds: xr.Dataset, **at) -> xr.Dataset:
-    """One value of each named axis: a value within half a grid step of one of the axis's values
-    (that value is taken); otherwise InputError naming the nearest values."""
+    """One value of each named axis, e.g. ``select(ds, phidot0=-3)``.
+
+    A value within half a grid step of one of the axis's values takes that value; another raises
+    InputError naming the nearest values.
+    """
     for k, v in at.items():
         if k not in ds.dims:
             raise InputError(f"{k}: not an axis of this map; axes: {', '.join(ds.dims)}")
@@ -316,12 +360,34 @@ def select(ds: xr.Dataset, **at) -> xr.Dataset:
 
 def query(ds: xr.Dataset, shape=None, n_sides: int | None = None, *, limit: int | None = None,
           max_n_error: float | None = None, max_closure: float | None = None, **at):
-    """Launches of a map whose label is `shape` (or that close with `n_sides` sides), most exact
-    first, as a `pandas.DataFrame`: one row per launch, columns the launch conditions (axis names,
-    in the map's units: deg where the name says `_deg`, rad/s, SI for ball axes), label,
-    n_sides, n_sides_error, closure_m, theta_max_deg, near_vertical. `df.attrs['units']` gives
-    each column's units, `df.attrs['matched']` how many matched before `limit`. Axis keywords
-    (e.g. phidot0=-3) keep one value of an axis (within half a grid step)."""
+    """The launches of a map with a shape, most exact first, as a `pandas.DataFrame`.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A map.
+    shape : str or list of str, optional
+        A label word (or words): square, triangle, star, ..., or a status.
+    n_sides : int, optional
+        Polygons that close with this many sides (triangle, square or ngon with round(n_sides)
+        == N), instead of `shape`.
+    limit : int, optional
+        At most this many rows (default: all).
+    max_n_error : float, optional
+        Only launches with |n_sides - nearest whole n| <= this.
+    max_closure : float, optional
+        Only launches whose corner drifts at most this far per circuit (m).
+    **at
+        Axis keywords (e.g. ``phidot0=-3``) keep one value of an axis (within half a grid step).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per launch: the launch conditions (axis names, in the map's units: deg where the
+        name says `_deg`, rad/s, SI for ball axes), label, n_sides, n_sides_error, closure_m,
+        theta_max_deg, near_vertical (theta max above 89 deg). `df.attrs['units']` gives each
+        column's units, `df.attrs['matched']` how many matched before `limit`.
+    """
     from .query import query as query_rows
 
     if at:

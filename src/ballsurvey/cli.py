@@ -834,6 +834,11 @@ def main(argv=None) -> int:
     except RunError as exc:
         print(f"ballsurvey {args.command}: error: {exc}", file=sys.stderr)
         return 1
+    except BrokenPipeError:  # the reader of stdout left (`query ... | head`): nothing to say
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except OSError as exc:  # the system refused a file operation (disk full, permissions)
         what = f"{exc.strerror}: {exc.filename}" if exc.strerror and exc.filename else str(exc)
         print(f"ballsurvey {args.command}: error: {what or type(exc).__name__}", file=sys.stderr)

@@ -187,8 +187,12 @@ def map_figure(ds: xr.Dataset, x: str | None = None, y: str | None = None,
         raise InputError(f"--facet {facet} is also the axis drawn "
                          f"{'across (--x)' if facet == x else 'up (--y)'}: facet by another axis")
     if x is None or y is None:  # the map's first free axes, whatever the grid sizes
-        free = default_axes(ds, exclude=({facet} if facet else set()) | set(at or {})
-                            | {a for a in (x, y) if a}, need=(x is None) + (y is None))
+        taken = ({facet} if facet else set()) | {a for a in (x, y) if a}
+        need = (x is None) + (y is None)
+        try:  # the axes --at fixes are not drawn, where others are left to draw
+            free = default_axes(ds, exclude=taken | set(at or {}), need=need)
+        except InputError:  # too few left: _select says which axis --at fixes that is drawn
+            free = default_axes(ds, exclude=taken, need=need)
         x, y = (x, y) if x and y else ((x, free[0]) if x else (free[0], y or free[1]))
     if x == y:
         raise InputError(f"--x and --y are the same axis ({x})")
