@@ -65,3 +65,13 @@ def test_docs_pictures_are_small_and_used():
     for png in img.glob("*.png"):
         assert png.stat().st_size < 160_000, png.name
         assert png.name in pages, f"{png.name} is not shown anywhere"
+
+
+def test_every_label_word_is_explained_in_the_readme_and_the_api_page():
+    from ballsurvey import LABELS
+
+    readme = (ROOT / "README.md").read_text()
+    api = (ROOT / "docs" / "api.md").read_text()
+    for word in LABELS:
+        assert f"`{word}`" in readme, word
+        assert f"`{word}`" in api, word

@@ -116,8 +116,11 @@ def sweep(spec, *, output=None, resume: bool = False, force: bool = False,
         `results/<name>.nc`). A relative path is relative to the current folder. TOML text or a
         dict naming no file is computed in a private temporary folder and returned in memory
         (at most 1e6 launches).
-    resume, force : bool
-        As `ballsurvey sweep --resume/--force`; rerunning a finished spec just opens its file.
+    resume : bool
+        Continue an interrupted sweep of this spec from its saved parts (`sweep --resume`).
+    force : bool
+        Overwrite an existing result or discard saved parts (`sweep --force`); without it,
+        rerunning a finished spec just opens its file.
     progress : bool, optional
         A progress bar on stderr (default: when stderr is a terminal).
     workers : int, optional

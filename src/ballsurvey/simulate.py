@@ -85,8 +85,12 @@ def simulate(theta0_deg: float, thetadot0: float, chidot0: float, phidot0: float
         Initial tilt of the symmetry axis (deg): 0 has the axis horizontal, positive tips the
         centre of mass down (its height is a - c sin theta); |theta0| < 90 and the flat face
         off the table (theta0 above -31.8 deg for the paper's ball).
-    thetadot0, chidot0, phidot0 : float
-        Initial rates of tilt, heading (precession) and spin (rad/s).
+    thetadot0 : float
+        Initial rate of tilt (rad/s).
+    chidot0 : float
+        Initial rate of heading, the precession rate (rad/s).
+    phidot0 : float
+        Initial spin rate (rad/s).
     T : float
         Duration (s).
     dt : float
@@ -95,8 +99,10 @@ def simulate(theta0_deg: float, thetadot0: float, chidot0: float, phidot0: float
         the first trial step is T / ceil(T/dt).
     chi0_deg : float
         Initial heading (deg).
-    x0, y0 : float
-        Initial position of the centre of mass (m).
+    x0 : float
+        Initial x of the centre of mass (m).
+    y0 : float
+        Initial y of the centre of mass (m).
     ball : Ball, optional
         The ball (default: the paper's truncated billiard ball).
     n_out : int
@@ -106,8 +112,10 @@ def simulate(theta0_deg: float, thetadot0: float, chidot0: float, phidot0: float
         the pair's dense output).
     thresholds : Thresholds, optional
         The classifier's thresholds (default: `Thresholds()`).
-    rtol, atol : float
-        Tolerances of the adaptive method.
+    rtol : float
+        Relative tolerance of the adaptive method.
+    atol : float
+        Absolute tolerance of the adaptive method.
 
     Returns
     -------
