@@ -20,7 +20,7 @@ def test_site_builds_strictly(tmp_path):
                           str(tmp_path / "site")], cwd=ROOT, env=env, capture_output=True,
                          text=True, timeout=300)
     assert run.returncode == 0, run.stderr[-3000:]
-    api = (tmp_path / "site" / "api" / "index.html").read_text()
+    api = (tmp_path / "site" / "api.html").read_text()
     for name in ("simulate.simulate", "api.sweep", "api.open_map", "api.query",
                  "api.BallsurveyAccessor.to_dataframe", "classify.labels.Thresholds"):
         assert f'id="ballsurvey.{name}"' in api, name
