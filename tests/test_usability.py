@@ -296,3 +296,42 @@ def test_a_reader_that_leaves_early_is_no_error(small_map):
     p.stdout.close()  # before it writes anything
     err = p.stderr.read().decode()
     assert p.wait(timeout=120) == 0 and err == "", err
+
+
+# Machado, Oliveira and Fernandes (2009), full severity: linear-RGB simulation of each
+# colour-vision deficiency
+_CVD = {
+    "protanopia": [[0.152286, 1.052583, -0.204868], [0.114503, 0.786281, 0.099216],
+                   [-0.003882, -0.048116, 1.051998]],
+    "deuteranopia": [[0.367322, 0.860646, -0.227968], [0.280085, 0.672501, 0.047413],
+                     [-0.011820, 0.042940, 0.968881]],
+    "tritanopia": [[1.255528, -0.076749, -0.178779], [-0.078411, 0.930809, 0.147602],
+                   [0.004733, 0.691367, 0.303900]],
+    "normal vision": np.eye(3).tolist(),
+}
+
+
+def _cielab(linear_rgb):
+    xyz = np.array([[0.4124, 0.3576, 0.1805], [0.2126, 0.7152, 0.0722],
+                    [0.0193, 0.1192, 0.9505]]) @ np.clip(linear_rgb, 0, 1)
+    t = xyz / np.array([0.95047, 1.0, 1.08883])
+    f = np.where(t > (6 / 29) ** 3, np.cbrt(t), t / (3 * (6 / 29) ** 2) + 4 / 29)
+    return np.array([116 * f[1] - 16, 500 * (f[0] - f[1]), 200 * (f[1] - f[2])])
+
+
+@pytest.mark.parametrize("vision", sorted(_CVD))
+def test_map_colours_stay_apart_for_colour_blind_readers(vision):
+    """Every two shape colours of a map differ by at least 10 (CIELAB Delta E) as seen with each
+    full colour-vision deficiency: told apart without the legend's words."""
+    from ballsurvey.classify.labels import SHAPES
+    from ballsurvey.plot import LABEL_COLOURS
+
+    def seen(hex_colour):
+        c = np.array([int(hex_colour[i:i + 2], 16) / 255 for i in (1, 3, 5)])
+        linear = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+        return _cielab(np.array(_CVD[vision]) @ linear)
+
+    lab = {w: seen(LABEL_COLOURS[w]) for w in SHAPES}
+    gaps = {(a, b): float(np.linalg.norm(lab[a] - lab[b]))
+            for i, a in enumerate(SHAPES) for b in SHAPES[i + 1:]}
+    assert min(gaps.values()) >= 10.0, min(gaps.items(), key=lambda kv: kv[1])
