@@ -202,6 +202,19 @@ def test_query_all_lists_every_match(small_map, capsys):
     assert cli.main(["query", str(small_map), "--shape", word, "--all", "--limit", "3"]) == 2
 
 
+def test_query_gives_each_star_its_p_q(small_map):
+    ds = ballsurvey.open_map(small_map)
+    df = ballsurvey.query(ds, shape="star")
+    assert len(df) == int((ds.label.values == CODE["star"]).sum()) > 0
+    for pq, n in zip(df.star, df.n_sides):
+        p, q = (int(v) for v in pq.strip("{}").split("/"))
+        # n_sides = 360/|turn| and a star {p/q} turns q/p of 360 deg a cycle: p/q is the
+        # fraction nearest n_sides with p <= 12 points (max_star_points)
+        best = min(abs(a / b - n) for a in range(2, 13) for b in range(2, a) if math.gcd(a, b) == 1)
+        assert abs(p / q - n) == pytest.approx(best, abs=1e-12) and math.gcd(p, q) == 1
+    assert "star" not in ballsurvey.query(ds, shape="circle").columns
+
+
 # ---- compiling ---------------------------------------------------------------------------------
 @pytest.mark.parametrize("command", ["path", "find", "gallery", "refine"])
 def test_every_command_that_compiles_says_so(command, monkeypatch, capsys):
