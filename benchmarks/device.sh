@@ -8,7 +8,7 @@
 #   (also: map-n N, an N^3 map of the same box; observer, the kernel with and without samples)
 #
 # The machine has its own Python with numba, numba-cuda, numpy, xarray, pandas and matplotlib and
-# no package index: netCDF4, cftime and dask come as wheels in .whl/ (README "Measured on a GPU").
+# no package index: netCDF4, cftime and dask come as wheels in .whl/ (docs/performance.md, "On a GPU").
 # Logs go to $OUT (or ./device-out) as <stage>.log.
 set -uo pipefail
 cd "$(dirname "$0")/.."

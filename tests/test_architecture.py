@@ -1,5 +1,5 @@
-"""Who may import whom (README "Layout"), checked on every module's imports with `ast`, including
-the kernel module sources that integrate/ generates and binds at run time.
+"""Who may import whom (docs/contributing.md, "Layout"), checked on every module's imports with
+`ast`, including the kernel module sources that integrate/ generates and binds at run time.
 
     physics/      imports nothing of ours but _jit
     integrate/    physics/ and itself (generated kernel sources included)

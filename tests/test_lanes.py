@@ -213,8 +213,9 @@ def _packed_multiplies(source: str, bind_observer: bool, call) -> int:
                     reason="checks x86 packed instructions")
 @pytest.mark.parametrize("kernel", ["bare", "observed"])
 def test_the_lane_trial_loop_is_vectorised(kernel):
-    # a guard on a measured fact (README "Adaptive ensembles"): with one more array in the trial
-    # loop (a live-flag row, the step counters, the kept slopes) LLVM keeps it scalar, 2.7x slower
+    # a guard on a measured fact (docs/performance.md, "How the kernels are built"): with one
+    # more array in the trial loop (a live-flag row, the step counters, the kept slopes) LLVM
+    # keeps it scalar, 2.7x slower
     from ballsurvey.integrate.lanes import observed_module_source
 
     n = 8

@@ -338,8 +338,10 @@ def _threads() -> int:
     return numba.get_num_threads()
 
 
-def run_accuracy(out_dir="results/accuracy", quick=False, emit=print) -> dict:
-    """The whole report: table (printed), netCDF file and log-log plot in out_dir."""
+def run_accuracy(out_dir="results/accuracy", quick=False, emit=print,
+                 fig_format: str = "png") -> dict:
+    """The whole report: table (printed), netCDF file and log-log plot (as `fig_format`: png,
+    pdf or svg) in out_dir."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -428,8 +430,8 @@ def run_accuracy(out_dir="results/accuracy", quick=False, emit=print) -> dict:
         ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
     for ax in list(axes.flat)[len(cs):]:
         ax.set_visible(False)
-    fig.savefig(out / "accuracy.png", dpi=100)
+    fig.savefig(out / f"accuracy.{fig_format}", dpi=100)
     plt.close(fig)
-    emit(f"wrote {out / 'accuracy.nc'} and {out / 'accuracy.png'}")
+    emit(f"wrote {out / 'accuracy.nc'} and {out / f'accuracy.{fig_format}'}")
     return {"rows": rows, "ensemble": ens, "agreement": agree, "coarsest_dt": coarse_dt,
             "loosest_rtol": loose_tol}

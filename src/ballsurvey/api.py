@@ -57,7 +57,7 @@ def _toml_value(v, where: str) -> str:
 
 
 def spec_to_toml(spec: dict) -> str:
-    """A spec given as a dict (the README's 'Sweep spec' layout) as TOML text."""
+    """A spec given as a dict (the layout of docs/specs.md) as TOML text."""
     if not isinstance(spec, dict):
         raise InputError(f"a spec is a path, TOML text or a dict, got {type(spec).__name__}")
     lines = []
@@ -104,16 +104,44 @@ def _spec_text(spec) -> tuple[str, str, bool]:
 def sweep(spec, *, output=None, resume: bool = False, force: bool = False,
           progress: bool | None = None, workers: int | None = None, scheduler: str | None = None,
           notice=None) -> xr.Dataset:
-    """Integrate and classify every launch of a spec; returns the map as an `xarray.Dataset`.
+    """Integrate and classify every launch of a spec; return the map as an `xarray.Dataset`.
 
-    spec: a path to a TOML file, TOML text, or a dict laid out like the TOML (README, 'Sweep
-    spec'). The file is written where `output` or the spec's `[output] file` says (a spec file
-    without one: `results/<name>.nc`) and opened, loaded into memory when small; TOML text or a
-    dict naming no file is computed in a private temporary folder and returned in memory (at
-    most 1e6 launches). resume, force: as `ballsurvey sweep --resume/--force`; rerunning a
-    finished spec just opens its file. workers / scheduler: a local dask cluster of that many
-    processes, or a running scheduler's address. Ctrl-C raises `SweepInterrupted` (finished work
-    is kept for `resume=True`)."""
+    Parameters
+    ----------
+    spec : str, path or dict
+        A path to a TOML file, TOML text, or a dict laid out like the TOML (the docs' 'Sweep
+        specs' page).
+    output : str or path, optional
+        Where to write the map; default: the spec's `[output] file` (a spec file without one:
+        `results/<name>.nc`). A relative path is relative to the current folder. TOML text or a
+        dict naming no file is computed in a private temporary folder and returned in memory
+        (at most 1e6 launches).
+    resume : bool
+        Continue an interrupted sweep of this spec from its saved parts (`sweep --resume`).
+    force : bool
+        Overwrite an existing result or discard saved parts (`sweep --force`); without it,
+        rerunning a finished spec just opens its file.
+    progress : bool, optional
+        A progress bar on stderr (default: when stderr is a terminal).
+    workers : int, optional
+        Start a local dask cluster of that many worker processes.
+    scheduler : str, optional
+        The address of a running dask.distributed scheduler.
+    notice : callable, optional
+        Receives the run's one-line messages (compiling, parts computed again); default: print.
+
+    Returns
+    -------
+    xarray.Dataset
+        The map, loaded into memory when small.
+
+    Raises
+    ------
+    InputError
+        A problem with the spec (one line naming the key), before any work.
+    SweepInterrupted
+        Ctrl-C; the finished work is kept for `resume=True`.
+    """
     from .sweep import load_spec
     from .sweep.engine import UpToDate, check_output_path, dask_client, output_is_current, run_sweep
 
@@ -152,9 +180,25 @@ class _nothing:
 
 
 def open_map(path, load: bool | None = None) -> xr.Dataset:
-    """Open a ballsurvey map (a netCDF file written by `sweep`). load: read it into memory and
-    close the file (default: when it is under 256 MB); otherwise lazily (dask when installed).
-    Anything that is not a map raises InputError with one line."""
+    """Open a ballsurvey map (a netCDF file written by `sweep`).
+
+    Parameters
+    ----------
+    path : str or path
+        The .nc file.
+    load : bool, optional
+        Read it into memory and close the file (default: when it is under 256 MB); otherwise
+        open it lazily (with dask when installed).
+
+    Returns
+    -------
+    xarray.Dataset
+
+    Raises
+    ------
+    InputError
+        Anything that is not a map (a spec, a folder, another file), with one line.
+    """
     if not isinstance(path, (str, os.PathLike)):
         raise InputError(f"open_map: a path to a .nc file, got {type(path).__name__}")
     p = Path(path)
@@ -213,14 +257,15 @@ def label_mask(ds: xr.Dataset, shape=None, n_sides: int | None = None) -> xr.Dat
 
 @xr.register_dataset_accessor("ballsurvey")
 class BallsurveyAccessor:
-    """`ds.ballsurvey`: a map's labels as words.
+    """`ds.ballsurvey`: a map's labels as words, on any map (importing `ballsurvey` registers it).
 
-    ds.ballsurvey.labels               words (object array) on the map's dimensions
-    ds.ballsurvey.mask(shape="square") boolean DataArray
-    ds.ballsurvey.where(shape="square", phidot0=-3)   the map with other launches masked (NaN,
-                                       label -1); axis keywords select one value of an axis
-    ds.ballsurvey.counts()             launches per label word (pandas Series)
-    ds.ballsurvey.query(shape="square")   the same DataFrame as ballsurvey.query
+    Examples
+    --------
+    >>> ds = ballsurvey.open_map("results/quick.nc")
+    >>> ds.ballsurvey.labels                     # a property: words on the map's dimensions
+    >>> ds.ballsurvey.counts()                   # launches per label word
+    >>> ds.ballsurvey.where(shape="square", phidot0=-3)
+    >>> ds.ballsurvey.to_dataframe()             # labels as a pandas categorical
     """
 
     def __init__(self, ds: xr.Dataset):
@@ -228,14 +273,20 @@ class BallsurveyAccessor:
 
     @property
     def labels(self) -> xr.DataArray:
+        """The label words (an object array) on the map's dimensions, named `label_word`; '' where
+        a cell was never written. A property: `ds.ballsurvey.labels`, no parentheses."""
         lab = self._ds.label
         return xr.DataArray(decode_label(lab.values), dims=lab.dims, coords=lab.coords,
                             name="label_word")
 
     def mask(self, shape=None, n_sides=None) -> xr.DataArray:
+        """True where the label is `shape` (a word or a list of words), or where the path closes
+        as a polygon with `n_sides` sides (a boolean DataArray on the map's dimensions)."""
         return label_mask(self._ds, shape, n_sides)
 
     def where(self, shape=None, n_sides=None, **at) -> xr.Dataset:
+        """The map with every other launch masked (NaN, label -1); axis keywords (`phidot0=-3`)
+        first select one value of an axis, as `ballsurvey.select` does."""
         ds = select(self._ds, **at) if at else self._ds
         m = label_mask(ds, shape, n_sides)
         out = ds.where(m)
@@ -244,6 +295,7 @@ class BallsurveyAccessor:
         return out
 
     def counts(self):
+        """Launches per label word present in the map (a pandas Series named `launches`)."""
         import pandas as pd
 
         codes = self._ds.label.values.ravel()
@@ -252,12 +304,40 @@ class BallsurveyAccessor:
         return pd.Series({w: int(c[i]) for i, w in enumerate(LABELS) if c[i]}, name="launches")
 
     def query(self, **kw):
+        """The same DataFrame as `ballsurvey.query(ds, **kw)`."""
         return query(self._ds, **kw)
+
+    def to_dataframe(self):
+        """The map as a pandas DataFrame, one row per launch, with every coded variable (`label`,
+        `corner_kind`, `formulation`: CF `flag_values` and `flag_meanings`) decoded to a pandas
+        categorical of its words (all the vocabulary's words as categories, in code order; a
+        cell never written is missing). `ds.to_dataframe()` gives the int8 codes instead."""
+        return decoded_frame(self._ds)
+
+
+def decoded_frame(ds: xr.Dataset):
+    """`ds.to_dataframe()` with each variable that has CF `flag_values`/`flag_meanings` as a
+    pandas Categorical of its words (see `BallsurveyAccessor.to_dataframe`)."""
+    import pandas as pd
+
+    df = ds.to_dataframe()
+    for name, var in ds.data_vars.items():
+        values, meanings = var.attrs.get("flag_values"), var.attrs.get("flag_meanings")
+        if name not in df or values is None or not meanings:
+            continue
+        words = str(meanings).split()
+        codes = np.asarray(values).astype(int).tolist()
+        word_of = dict(zip(codes, words))
+        df[name] = pd.Categorical(df[name].map(word_of), categories=words)
+    return df
 
 
 def select(ds: xr.Dataset, **at) -> xr.Dataset:
-    """One value of each named axis: a value within half a grid step of one of the axis's values
-    (that value is taken); otherwise InputError naming the nearest values."""
+    """One value of each named axis, e.g. ``select(ds, phidot0=-3)``.
+
+    A value within half a grid step of one of the axis's values takes that value; another raises
+    InputError naming the nearest values.
+    """
     for k, v in at.items():
         if k not in ds.dims:
             raise InputError(f"{k}: not an axis of this map; axes: {', '.join(ds.dims)}")
@@ -283,12 +363,34 @@ def select(ds: xr.Dataset, **at) -> xr.Dataset:
 
 def query(ds: xr.Dataset, shape=None, n_sides: int | None = None, *, limit: int | None = None,
           max_n_error: float | None = None, max_closure: float | None = None, **at):
-    """Launches of a map whose label is `shape` (or that close with `n_sides` sides), most exact
-    first, as a `pandas.DataFrame`: one row per launch, columns the launch conditions (axis names,
-    in the map's units: deg where the name says `_deg`, rad/s, SI for ball axes), label,
-    n_sides, n_sides_error, closure_m, theta_max_deg, near_vertical. `df.attrs['units']` gives
-    each column's units, `df.attrs['matched']` how many matched before `limit`. Axis keywords
-    (e.g. phidot0=-3) keep one value of an axis (within half a grid step)."""
+    """The launches of a map with a shape, most exact first, as a `pandas.DataFrame`.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A map.
+    shape : str or list of str, optional
+        A label word (or words): square, triangle, star, ..., or a status.
+    n_sides : int, optional
+        Polygons that close with this many sides (triangle, square or ngon with round(n_sides)
+        == N), instead of `shape`.
+    limit : int, optional
+        At most this many rows (default: all).
+    max_n_error : float, optional
+        Only launches with |n_sides - nearest whole n| <= this.
+    max_closure : float, optional
+        Only launches whose corner drifts at most this far per circuit (m).
+    **at
+        Axis keywords (e.g. ``phidot0=-3``) keep one value of an axis (within half a grid step).
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per launch: the launch conditions (axis names, in the map's units: deg where the
+        name says `_deg`, rad/s, SI for ball axes), label, n_sides, n_sides_error, closure_m,
+        theta_max_deg, near_vertical (theta max above 89 deg). `df.attrs['units']` gives each
+        column's units, `df.attrs['matched']` how many matched before `limit`.
+    """
     from .query import query as query_rows
 
     if at:

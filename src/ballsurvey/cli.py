@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from contextlib import contextmanager
 
 from .limits import InputError
 
@@ -52,17 +53,35 @@ def _launch_opt(flag, name, value):
 
 
 def _out_file(name, value, suffix):
-    """-o/--output: a file name ending in `suffix` that is not an existing folder."""
+    """-o/--output: a file name ending in `suffix` (a string, or a tuple of those allowed) that
+    is not an existing folder."""
     from pathlib import Path
 
     if value is None:
         return None
+    suffixes = (suffix,) if isinstance(suffix, str) else tuple(suffix)
     p = Path(value)
-    if not value or not p.name.endswith(suffix) or p.name == suffix:
-        raise UserError(f"{name}: must be a file name ending in {suffix}, got {value!r}")
+    ok = any(p.name.lower().endswith(s) and p.name.lower() != s for s in suffixes)
+    want = " or ".join(suffixes)
+    if not value or not ok:
+        raise UserError(f"{name}: must be a file name ending in {want}, got {value!r}")
     if p.is_dir():
-        raise UserError(f"{name}: {value} is a folder; give a file name ending in {suffix}")
+        raise UserError(f"{name}: {value} is a folder; give a file name ending in {want}")
     return p
+
+
+def _figure_file(value):
+    """-o/--output of a figure command: .png, .pdf or .svg."""
+    from .plot import FIGURE_SUFFIXES
+
+    return _out_file("-o/--output", value, FIGURE_SUFFIXES)
+
+
+#: the order of `ballsurvey --help`: what a user does first comes first
+COMMAND_ORDER = ("path", "sweep", "plot", "query", "find", "gallery", "refine", "paper", "accuracy",
+                 "bench")
+#: path's integration time (s) when --T is not given: long enough for the label on most launches
+PATH_T = 20.0
 
 
 def _cmd_bench(args):
@@ -304,47 +323,62 @@ def _parse_at(items):
 def _cmd_plot(args):
     from pathlib import Path
 
+    from .api import select
     from .plot import plot_map
 
-    out = _out_file("-o/--output", args.output, ".png") or Path(args.result).with_suffix(".png")
+    out = _figure_file(args.output) or Path(args.result).with_suffix(".png")
     at = _parse_at(args.at)
     ds = _open_map(args.result)
     plot_map(ds, out, x=args.x, y=args.y, at=at, facet=args.facet,
              contours=not args.no_contours)
+    for key, asked in at.items():
+        used = float(select(ds[[key]], **{key: asked})[key])
+        if used != asked:
+            print(f"--at {key}={asked:g}: drew the map's nearest value, {key} = {used:g}")
     print(f"wrote {out}")
 
 
 def _cmd_path(args):
 
     from . import limits
-    from .plot import plot_path
+    from .plot import orbit_window, plot_path, shape_text
     from .simulate import check_simulate_inputs, simulate
 
-    out = _out_file("-o/--output", args.output, ".png")
+    out = _figure_file(args.output)
+    dpi = _opt("--dpi", args.dpi, integer=True, lo=20, hi=1200)
     for name in ("theta0_deg", "thetadot0", "chidot0", "phidot0", "chi0_deg"):
         _launch_opt("--" + name.replace("_", "-"), name, getattr(args, name))
+    T = args.T if args.T is not None else PATH_T
     try:
-        limits.steps(args.T, args.dt, "--T", "--dt")
+        limits.steps(T, args.dt, "--T", "--dt")
         limits.samples(args.n_out, "--n-out")
-        check_simulate_inputs(args.theta0_deg, args.thetadot0, args.chidot0, args.phidot0, args.T,
+        check_simulate_inputs(args.theta0_deg, args.thetadot0, args.chidot0, args.phidot0, T,
                               args.dt, args.chi0_deg, n_out=args.n_out)
     except limits.InputError as exc:
         raise UserError(str(exc)) from None
-    ds = simulate(args.theta0_deg, args.thetadot0, args.chidot0, args.phidot0, args.T, dt=args.dt,
+    ds = simulate(args.theta0_deg, args.thetadot0, args.chidot0, args.phidot0, T, dt=args.dt,
                   chi0_deg=args.chi0_deg, n_out=args.n_out)
+    drawn, shown = ds, ""
+    if args.T is None:  # the label from PATH_T seconds, the figure of a few orbits
+        window = orbit_window(ds.attrs, T)
+        if window < T:
+            drawn = ds.sel(time=slice(0.0, window))
+            drawn.attrs = ds.attrs
+            shown = (f"; drew the first {window:.3g} s (three orbits, at most 36 theta cycles; "
+                     "--T to choose)")
     out.parent.mkdir(parents=True, exist_ok=True)
-    plot_path(ds, out)
+    plot_path(drawn, out, panels=args.panels, dpi=dpi)
     a = ds.attrs
-    print(f"{a['label']}: n_sides {a['n_sides']:.4f}, turn per cycle {a['turn_per_cycle_deg']:.3f} "
-          f"deg, theta {a['theta_min_deg']:.2f}..{a['theta_max_deg']:.2f} deg, corners "
-          f"{a['corner_kind']}; wrote {out}")
+    print(f"{shape_text(a)}; turn per cycle {a['turn_per_cycle_deg']:.3f} deg, theta "
+          f"{a['theta_min_deg']:.2f}..{a['theta_max_deg']:.2f} deg (label from {T:g} s)"
+          f"{shown}; wrote {out}")
 
 
 def _cmd_query(args):
     from .query import DEFAULT_LIMIT, format_table, query
 
     limit = _opt("--limit", args.limit, integer=True, lo=1)
-    if limit is None:
+    if limit is None and not args.all:
         limit = DEFAULT_LIMIT
     _opt("--n-sides", args.n_sides, integer=True, lo=3)
     df = query(_open_map(args.result), shape=args.shape, n_sides=args.n_sides, limit=limit,
@@ -352,7 +386,7 @@ def _cmd_query(args):
     print(format_table(df, args.format), flush=True)
     more = df.attrs["matched"] - len(df)
     if more > 0:
-        print(f"... {more} more matched (--limit N to see more)", file=sys.stderr)
+        print(f"... {more} more matched (--limit N or --all to see more)", file=sys.stderr)
 
 
 def _cmd_gallery(args):
@@ -363,8 +397,8 @@ def _cmd_gallery(args):
     _opt("--per-label", args.per_label, integer=True, lo=1, hi=100)
     _opt("--T", args.T, positive=True, hi=1e6)
     ds = _open_map(args.result)  # a folder or '.' is refused here, before naming the output
-    out = _out_file("-o/--output", args.output or str(Path(args.result).with_name(
-        Path(args.result).stem + "-gallery.png")), ".png")
+    out = _figure_file(args.output or str(Path(args.result).with_name(
+        Path(args.result).stem + "-gallery.png")))
     rows = draw_gallery(ds, out, per_label=args.per_label, seed=args.seed, T=args.T)
     changed = [r for r in rows if r["label_again"] != r["label"]]
     print(f"wrote {out}: {len(rows)} paths, "
@@ -381,7 +415,7 @@ def _cmd_accuracy(args):
         return
     from .accuracy import run_accuracy
 
-    run_accuracy(args.output, quick=args.quick)
+    run_accuracy(args.output, quick=args.quick, fig_format=args.format)
 
 
 def _cmd_find(args):
@@ -527,7 +561,7 @@ def _write_refined(out, res, args) -> None:
 def _cmd_paper(args):
     from .paper import reproduce
 
-    reproduce(args.output)
+    reproduce(args.output, fig_format=args.format)
 
 
 def _version() -> str:
@@ -618,7 +652,8 @@ def build_parser() -> argparse.ArgumentParser:
     b.set_defaults(func=_cmd_bench)
 
     s = cmd("sweep", help="integrate and classify every launch of a spec; write a netCDF map")
-    s.add_argument("spec", help="sweep spec (TOML); see README 'Sweep spec'")
+    s.add_argument("spec", help="sweep spec (TOML); see the docs' 'Sweep specs' page; an "
+                                "output path in it is relative to the current folder")
     s.add_argument("--resume", action="store_true",
                    help="continue an interrupted sweep of this spec from its saved parts")
     s.add_argument("--force", action="store_true",
@@ -647,7 +682,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="also a line as launches finish (-vv: and this process's dask logs)")
     s.set_defaults(func=_cmd_sweep)
 
-    p = cmd("plot", help="draw a regime map (PNG) from a sweep's netCDF file")
+    p = cmd("plot", help="draw a regime map (PNG, PDF or SVG) from a sweep's netCDF file")
     p.add_argument("result", help="a ballsurvey netCDF map (.nc, written by sweep)")
     p.add_argument("--x", metavar="AXIS", help="axis drawn across (default: the second longest)")
     p.add_argument("--y", metavar="AXIS", help="axis drawn up (default: the longest)")
@@ -656,8 +691,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "repeatable), in the axis's units (deg or rad/s)")
     p.add_argument("--facet", metavar="AXIS", help="one panel per value of AXIS")
     p.add_argument("--no-contours", action="store_true", help="omit the n_sides = 3, 4 contours")
-    p.add_argument("-o", "--output", metavar="FILE.png",
-                   help="PNG file (default: RESULT with .png)")
+    p.add_argument("-o", "--output", metavar="FILE",
+                   help="figure file, .png, .pdf or .svg (default: RESULT with .png)")
     p.set_defaults(func=_cmd_plot)
 
     q = cmd("path", help="integrate one launch and draw it like the paper's figures")
@@ -671,11 +706,18 @@ def build_parser() -> argparse.ArgumentParser:
                    help="initial spin rate (rad/s)")
     q.add_argument("--chi0-deg", type=float, default=0.0, metavar="DEG",
                    help="initial heading (deg)")
-    q.add_argument("--T", type=float, default=20.0, metavar="SECONDS", help="duration (s)")
+    q.add_argument("--T", type=float, default=None, metavar="SECONDS",
+                   help="duration (s) integrated and drawn (default: 20 s integrated for the "
+                        "label, the first three orbits drawn)")
     q.add_argument("--dt", type=float, default=1e-4, metavar="SECONDS", help="largest step (s)")
     q.add_argument("--n-out", type=int, default=4001, metavar="N", help="samples kept")
-    q.add_argument("-o", "--output", default="results/path.png", metavar="FILE.png",
-                   help="PNG file")
+    q.add_argument("--panels", choices=("all", "path"), default="all",
+                   help="all: the path, theta, the rates, friction and normal force; path: the "
+                        "path alone, in a small figure")
+    q.add_argument("--dpi", type=int, default=100, metavar="N",
+                   help="resolution of a PNG (dots per inch)")
+    q.add_argument("-o", "--output", default="results/path.png", metavar="FILE",
+                   help="figure file, .png, .pdf or .svg")
     q.set_defaults(func=_cmd_path)
 
     r = cmd("query", help="list the launches of a map that give a shape, best first")
@@ -687,7 +729,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--format", choices=("table", "csv", "json"), default="table",
                    help="table for people; csv or json (keys without units; the units and the "
                         "values common to every row are given once) for scripts")
-    r.add_argument("--limit", type=int, default=20, metavar="N", help="at most N rows")
+    lim = r.add_mutually_exclusive_group()
+    lim.add_argument("--limit", type=int, default=None, metavar="N",
+                     help="at most N rows (default: 20)")
+    lim.add_argument("--all", action="store_true", help="every matching row")
     r.add_argument("--max-n-error", type=float, metavar="E",
                    help="only launches with |n_sides - nearest whole n| <= E")
     r.add_argument("--max-closure", type=float, metavar="METRES",
@@ -697,8 +742,8 @@ def build_parser() -> argparse.ArgumentParser:
     gl = cmd("gallery", help="draw sample paths behind each label of a map, integrated again, "
                              "to check the labels by eye")
     gl.add_argument("result", help="a ballsurvey netCDF map (.nc)")
-    gl.add_argument("-o", "--output", metavar="FILE.png",
-                    help="PNG file (default: RESULT-gallery.png)")
+    gl.add_argument("-o", "--output", metavar="FILE",
+                    help="figure file, .png, .pdf or .svg (default: RESULT-gallery.png)")
     gl.add_argument("--per-label", type=int, default=4, metavar="N", help="paths per label")
     gl.add_argument("--seed", type=int, default=0, help="random seed of the sample")
     gl.add_argument("--T", type=float, metavar="SECONDS",
@@ -707,7 +752,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     pp = cmd("paper", help="reproduce the paper's numerical figures and compare numbers")
     pp.add_argument("-o", "--output", default="results/paper", metavar="FOLDER",
-                    help="folder for the PNGs")
+                    help="folder for the figures")
+    pp.add_argument("--format", choices=("png", "pdf", "svg"), default="png",
+                    help="file format of the figures")
     pp.set_defaults(func=_cmd_paper)
 
     fd = cmd("find", help="solve for the launch condition that closes an exact n-gon")
@@ -749,14 +796,35 @@ def build_parser() -> argparse.ArgumentParser:
     ac = cmd("accuracy", help="work-precision report: error against run time, RK4 and adaptive, "
                               "paper and extreme cases")
     ac.add_argument("-o", "--output", default="results/accuracy", metavar="FOLDER",
-                    help="folder for .nc and .png")
+                    help="folder for the .nc file and the figure")
+    ac.add_argument("--format", choices=("png", "pdf", "svg"), default="png",
+                    help="file format of the figure")
     ac.add_argument("--quick", action="store_true", help="fewer cases and settings (a minute)")
     ac.add_argument("--ensemble", type=int, nargs="?", const=256, default=None, metavar="N",
                     help="only the ensemble table: N launches around the square (256 when not "
                          "given), final position error against launches/s for DOP853 (SIMD "
                          "lanes), dopri5 and RK4")
     ac.set_defaults(func=_cmd_accuracy)
+    # `ballsurvey --help` lists the commands in the order people use them, not of the code above
+    rank = {name: i for i, name in enumerate(COMMAND_ORDER)}
+    sub._choices_actions.sort(key=lambda a: rank.get(a.dest, len(rank)))
     return ap
+
+
+@contextmanager
+def _compiling_line(command: str):
+    """While a command runs, its first numba compilation prints one line on stderr, so a cold
+    start (seconds to a minute) is not silent; `sweep` says it itself, with its progress."""
+    if command == "sweep":
+        yield
+        return
+    from .sweep.compute import compile_watch
+
+    def say(msg):
+        print(f"ballsurvey {command}: {msg}", file=sys.stderr, flush=True)
+
+    with compile_watch(say):
+        yield
 
 
 def main(argv=None) -> int:
@@ -767,13 +835,19 @@ def main(argv=None) -> int:
     from .limits import RunError
 
     try:
-        args.func(args)
+        with _compiling_line(args.command):
+            args.func(args)
     except InputError as exc:
         print(f"ballsurvey {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except RunError as exc:
         print(f"ballsurvey {args.command}: error: {exc}", file=sys.stderr)
         return 1
+    except BrokenPipeError:  # the reader of stdout left (`query ... | head`): nothing to say
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except OSError as exc:  # the system refused a file operation (disk full, permissions)
         what = f"{exc.strerror}: {exc.filename}" if exc.strerror and exc.filename else str(exc)
         print(f"ballsurvey {args.command}: error: {what or type(exc).__name__}", file=sys.stderr)

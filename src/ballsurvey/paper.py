@@ -6,7 +6,7 @@ from pathlib import Path
 
 from .ball import Ball
 from .physics.steady import precession_for_radius, steady_circle
-from .plot import plot_path
+from .plot import launch_title, plot_path
 from .simulate import simulate
 
 #: the paper's numerical launches (as its text gives them; docs/physics.md section 5) and the
@@ -34,8 +34,9 @@ def _verdict(ok: bool) -> str:
 
 
 def reproduce(out_dir="results/paper", ball: Ball | None = None, T_label: float = 20.0,
-              dt: float = 1e-4, emit=print) -> list[dict]:
-    """Draw Figs. 4, 7, 9a, 9c, 12a, 12b as PNGs in out_dir; return (and print) the comparison."""
+              dt: float = 1e-4, emit=print, fig_format: str = "png") -> list[dict]:
+    """Draw Figs. 4, 7, 9a, 9c, 12a, 12b in out_dir (as `fig_format`: png, pdf or svg); return
+    (and print) the comparison of the paper's numbers with ours."""
     ball = ball or Ball.paper()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -47,10 +48,11 @@ def reproduce(out_dir="results/paper", ball: Ball | None = None, T_label: float 
             kw.update(f4)
         labelled = simulate(**kw, T=T_label, dt=dt, ball=ball, n_out=4001)
         drawn = simulate(**kw, T=spec["T_fig"], dt=dt, ball=ball, n_out=4001)
-        drawn.attrs.update({k: labelled.attrs[k] for k in ("label", "n_sides", "corner_kind")})
-        plot_path(drawn, out / f"{name}.png", ball=ball,
-                  title=f"Paper {name.replace('fig', 'Fig. ')}: {drawn.attrs['label']} "
-                        f"(label from T = {T_label:g} s), drawn for {spec['T_fig']:g} s")
+        drawn.attrs.update({k: labelled.attrs[k] for k in ("label", "n_sides", "corner_kind",
+                                                           "star_points", "star_step")})
+        plot_path(drawn, out / f"{name}.{fig_format}", ball=ball,
+                  title=f"Paper {name.replace('fig', 'Fig. ')}, drawn for {spec['T_fig']:g} s "
+                        f"(label from T = {T_label:g} s): " + launch_title(drawn.attrs))
         runs[name] = labelled
     a4 = runs["fig4"].attrs
     omega_eq37 = precession_for_radius(math.radians(24.0), 0.073 / ball.a,
@@ -111,5 +113,5 @@ def reproduce(out_dir="results/paper", ball: Ball | None = None, T_label: float 
     for r in table:
         emit(f"{r['quantity']:<{w[0]}}  {r['paper']:<{w[1]}}  {r['ours']:<{w[2]}}  "
              f"{r['verdict']:<{w[3]}}  {r['note']}")
-    emit(f"figures written to {out}/ ({', '.join(f + '.png' for f in FIGURES)})")
+    emit(f"figures written to {out}/ ({', '.join(f'{f}.{fig_format}' for f in FIGURES)})")
     return table

@@ -21,21 +21,98 @@ from .classify.observer import theta_maxima
 from .limits import InputError
 from .physics import euler
 
-#: one colour per label word: shapes in saturated colours, statuses in greys / muted tones
+#: one colour per label word: shapes from Paul Tol's bright and muted qualitative schemes (told
+#: apart with each common colour-vision deficiency), statuses in greys and browns, hatched on maps
 LABEL_COLOURS = {
     "circle": "#4477aa", "near_straight": "#66ccee", "triangle": "#228833", "square": "#ee6677",
     "ngon": "#ccbb44", "star": "#aa3377", "rosette": "#44aa99",
     "unresolved": "#dddddd", "blew_up": "#000000", "singular": "#555555", "flat_face": "#997755",
     "lift_off": "#bbbbbb", "slipping": "#888888", "inaccurate": "#ee7733",
 }
+#: line colours of the path figure's panels (Okabe and Ito's colour-blind-safe set)
+LINE_COLOURS = {"chidot": "#0072b2", "phidot": "#e69f00", "friction": "#d55e00",
+                "normal": "#009e73", "corner": "#cc3311"}
 AXIS_TEXT = {k: ax.plot_label for k, ax in AXES.items()}
+#: figures are written in these formats, chosen by the output file's suffix
+FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
+#: the words for corner kinds printed beside a polygon or star (other shapes print none: a
+#: circle, a line or a rosette has no corners to speak of)
+CORNER_WORDS = {"rounded": "rounded corners", "cusp": "cusped corners",
+                "loop": "looped corners"}
 
 
 def axis_value_text(axis: str, value: float) -> str:
-    """'phidot0 = -3 rad/s', 'theta0 = 5 deg'."""
-    name = axis[:-4] if axis.endswith("_deg") else axis
+    """'$\\dot\\phi_0$ = -3 rad/s', '$\\theta_0$ = 5 deg': the axis's plot symbol, its value and
+    units (matplotlib mathtext, as on the axes)."""
+    label = AXES[axis].plot_label if axis in AXES else axis
+    symbol = label.split(" (")[0]
     unit = AXES[axis].text_units if axis in AXES else ""
-    return f"{name} = {value:g} {unit}".rstrip()
+    return f"{symbol} = {value:g} {unit}".rstrip()
+
+
+def ball_text(attrs: dict) -> str:
+    """Which ball a map or a path is of, from its attributes (`ball_a`, `ball_c`, `ball_M`):
+    "the paper's ball (a = 25.4 mm, c = 2.9 mm, M = 98.4 g)", or "ball: a = ..." for another;
+    an axis of the map that varies the ball is named instead of its value."""
+    paper = Ball.paper()
+    vals, parts = {}, []
+    for k, unit, scale in (("a", "mm", 1e3), ("c", "mm", 1e3), ("M", "g", 1e3)):
+        v = attrs.get(f"ball_{k}")
+        try:
+            vals[k] = float(v)
+        except (TypeError, ValueError):
+            parts.append(f"{k} varies")
+            continue
+        parts.append(f"{k} = {vals[k] * scale:.4g} {unit}")
+    same = all(math.isclose(vals.get(k, math.nan), getattr(paper, k), rel_tol=1e-9)
+               for k in ("a", "c", "M"))
+    same = same and all(math.isclose(float(attrs.get(f"ball_{k}", math.nan)), getattr(paper, k),
+                                     rel_tol=1e-9) for k in ("A", "B", "cut_height"))
+    return ("the paper's ball (" if same else "ball: ") + ", ".join(parts) + (")" if same else "")
+
+
+def shape_text(fields: dict) -> str:
+    """A launch's shape in words, from its label and fields (a path's attrs or a map row):
+    'square, n = 3.998, rounded corners', 'star {5/2}, n = 2.500, cusped corners', 'circle'.
+    n is given where the path has a turn per cycle; the corner kind only for polygons and stars,
+    the shapes whose corners the classifier judged."""
+    label = str(fields.get("label", "?"))
+    text = label.replace("_", " ")
+    p, q = fields.get("star_points"), fields.get("star_step")
+    if label == "star" and _finite(p) and _finite(q) and p > 0:
+        text += f" {{{int(p)}/{int(q)}}}"
+    n = fields.get("n_sides")
+    if label in SHAPES and label not in ("circle", "near_straight") and _finite(n):
+        text += f", n = {float(n):.3f}"
+    kind = str(fields.get("corner_kind", ""))
+    if label in ("triangle", "square", "ngon", "star") and kind in CORNER_WORDS:
+        text += f", {CORNER_WORDS[kind]}"
+    return text
+
+
+def _finite(v) -> bool:
+    try:
+        return math.isfinite(float(v))
+    except (TypeError, ValueError):
+        return False
+
+
+def figure_format(out) -> str:
+    """'png', 'pdf' or 'svg': the format a figure file's suffix names (InputError otherwise)."""
+    from pathlib import Path
+
+    suffix = Path(out).suffix.lower()
+    if suffix not in FIGURE_SUFFIXES:
+        raise InputError(f"{out}: a figure file ends in {', '.join(FIGURE_SUFFIXES)}")
+    return suffix[1:]
+
+
+def _save(fig: Figure, out, dpi: int = 110):
+    """Write a figure in the format its file's suffix names (.png, .pdf or .svg)."""
+    suffix = "." + figure_format(out)
+    extra = {"pil_kwargs": {"optimize": True}} if suffix == ".png" else {}
+    fig.savefig(out, dpi=dpi, format=suffix[1:], **extra)
+    return out
 
 
 def _select(ds: xr.Dataset, x: str, y: str, at: dict, facet: str | None) -> xr.Dataset:
@@ -57,18 +134,51 @@ def _select(ds: xr.Dataset, x: str, y: str, at: dict, facet: str | None) -> xr.D
     return ds
 
 
-def default_axes(ds: xr.Dataset, exclude=()) -> tuple[str, str]:
-    """The two longest axes of a grid (not those in `exclude`), the first drawn across."""
-    dims = sorted((d for d in ds.label.dims if d not in exclude), key=lambda d: -ds.sizes[d])
-    if len(dims) < 2 or ds.sizes[dims[1]] < 2:
-        besides = f" besides the facet axis {', '.join(exclude)}" if exclude else ""
+def default_axes(ds: xr.Dataset, exclude=(), need: int = 2) -> tuple[str, ...]:
+    """The first two axes of a grid, in the map's own order of dimensions (theta0_deg,
+    thetadot0, chidot0, phidot0, then ball axes), that hold more than one value and are not in
+    `exclude`: the first drawn across, the second up (`need`: how many are wanted). Grid sizes
+    do not matter, so two maps of one plane are drawn the same way round."""
+    dims = [d for d in ds.label.dims if d not in exclude and ds.sizes[d] > 1]
+    if len(dims) < need:
+        besides = (f" besides the facet and fixed axes ({', '.join(sorted(exclude))})"
+                   if exclude else "")
         raise InputError(f"a regime map needs two axes with more than one value{besides}")
-    return dims[1], dims[0]
+    return tuple(dims[:need])
 
 
 def plot_map(ds: xr.Dataset, out, x: str | None = None, y: str | None = None,
              at: dict | None = None, facet: str | None = None, contours: bool = True):
-    """Categorical map of `label` over axes x (across) and y (up); facets along `facet`."""
+    """Draw a regime map: one colour per label over axes x (across) and y (up).
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A map (`ballsurvey.open_map`, `ballsurvey.sweep`).
+    out : str or path
+        The file to write: .png, .pdf or .svg.
+    x, y : str, optional
+        The axes drawn across and up (default: the map's first two axes with more than one
+        value, in its own order of dimensions, whatever the grid sizes).
+    at : dict, optional
+        One value for each other axis, e.g. ``{"phidot0": -3}`` (within half a grid step).
+    facet : str, optional
+        One panel per value of this axis.
+    contours : bool
+        Draw the exact n = 3 and n = 4 curves.
+
+    Returns
+    -------
+    The file written.
+    """
+    figure_format(out)
+    return _save(map_figure(ds, x, y, at, facet, contours), out)
+
+
+def map_figure(ds: xr.Dataset, x: str | None = None, y: str | None = None,
+               at: dict | None = None, facet: str | None = None,
+               contours: bool = True) -> Figure:
+    """The figure `plot_map` writes (a matplotlib `Figure`, not yet saved)."""
     if "label" not in ds:
         raise InputError("the file has no 'label' variable (not a ballsurvey map?)")
     if "launch" in ds.dims:
@@ -76,10 +186,14 @@ def plot_map(ds: xr.Dataset, out, x: str | None = None, y: str | None = None,
     if facet is not None and facet in (x, y):
         raise InputError(f"--facet {facet} is also the axis drawn "
                          f"{'across (--x)' if facet == x else 'up (--y)'}: facet by another axis")
-    if x is None or y is None:  # the longest axes left after the facet and the axis given
-        dx, dy = default_axes(ds, exclude={facet} if facet else ())
-        x = x or (dx if dx != y else dy)
-        y = y or (dy if dy != x else dx)
+    if x is None or y is None:  # the map's first free axes, whatever the grid sizes
+        taken = ({facet} if facet else set()) | {a for a in (x, y) if a}
+        need = (x is None) + (y is None)
+        try:  # the axes --at fixes are not drawn, where others are left to draw
+            free = default_axes(ds, exclude=taken | set(at or {}), need=need)
+        except InputError:  # too few left: _select says which axis --at fixes that is drawn
+            free = default_axes(ds, exclude=taken, need=need)
+        x, y = (x, y) if x and y else ((x, free[0]) if x else (free[0], y or free[1]))
     if x == y:
         raise InputError(f"--x and --y are the same axis ({x})")
     for a in (x, y) + ((facet,) if facet else ()):
@@ -118,8 +232,8 @@ def plot_map(ds: xr.Dataset, out, x: str | None = None, y: str | None = None,
         ax.set_visible(False)
     fixed = [axis_value_text(d, float(sel[d])) for d in ds.label.dims
              if d not in (x, y, facet) and d in sel.coords]
-    fig.suptitle(ds.attrs.get("title", "regime map") + ("\n" + ", ".join(fixed) if fixed else ""),
-                 fontsize=11)
+    fig.suptitle(ds.attrs.get("title", "regime map") + "\n" + ", ".join([ball_text(ds.attrs)]
+                                                                         + fixed), fontsize=11)
     shapes = [Patch(facecolor=LABEL_COLOURS[w], label=w.replace("_", "-"))
               for i, w in enumerate(LABELS) if w in SHAPES and i in present]
     status = [Patch(facecolor=LABEL_COLOURS[w], edgecolor="k", hatch="//",
@@ -132,23 +246,26 @@ def plot_map(ds: xr.Dataset, out, x: str | None = None, y: str | None = None,
         handles.append(Line2D([], [], color="k", lw=1.0,
                               label="exact triangle (n=3)\nand square (n=4)"))
     fig.legend(handles=handles, loc="outside right center", title="path shape", fontsize=9)
-    fig.savefig(out, dpi=110)
-    return out
+    return fig
 
 
 # ----------------------------------------------------------------------------------------------
 def path_diagnostics(ds: xr.Dataset, ball: Ball) -> dict:
-    """Heading rate of the path, friction ratio and normal force along a `simulate` trajectory."""
-    p, tu = ball.nondim_params(), ball.time_unit
-    n = ds.sizes["time"]
-    fric, normal = np.empty(n), np.empty(n)
-    for k in range(n):
-        u = np.array([ds.x.values[k] / ball.a, ds.y.values[k] / ball.a, ds.theta.values[k],
-                      ds.chi.values[k], ds.phi.values[k], ds.thetadot.values[k] * tu,
-                      ds.chidot.values[k] * tu, ds.phidot.values[k] * tu])
-        fx, fy, nn, *_ = euler.contact(u, p)
-        fric[k] = math.hypot(fx, fy) / nn if nn > 0 else np.inf
-        normal[k] = nn * ball.M * ball.g
+    """Heading rate of the path (rad/s), friction ratio |F_h|/N and normal force N (N) along a
+    `simulate` trajectory (its `friction_ratio` and `normal_force` variables where it has them)."""
+    if "friction_ratio" in ds and "normal_force" in ds:
+        fric, normal = ds.friction_ratio.values, ds.normal_force.values
+    else:
+        p, tu = ball.nondim_params(), ball.time_unit
+        n = ds.sizes["time"]
+        fric, normal = np.empty(n), np.empty(n)
+        for k in range(n):
+            u = np.array([ds.x.values[k] / ball.a, ds.y.values[k] / ball.a, ds.theta.values[k],
+                          ds.chi.values[k], ds.phi.values[k], ds.thetadot.values[k] * tu,
+                          ds.chidot.values[k] * tu, ds.phidot.values[k] * tu])
+            fx, fy, nn, *_ = euler.contact(u, p)
+            fric[k] = math.hypot(fx, fy) / nn if nn > 0 else np.inf
+            normal[k] = nn * ball.M * ball.g
     vx = np.gradient(ds.x.values, ds.time.values)
     vy = np.gradient(ds.y.values, ds.time.values)
     heading = np.unwrap(np.arctan2(vy, vx))
@@ -156,11 +273,30 @@ def path_diagnostics(ds: xr.Dataset, ball: Ball) -> dict:
     return {"heading_rate": psid, "friction_ratio": fric, "normal_N": normal}
 
 
-def corner_indices(ds: xr.Dataset, heading_rate: np.ndarray) -> np.ndarray:
-    """Per theta cycle (between successive theta maxima), the sample of peak |heading rate|."""
-    mx = theta_maxima(ds.theta.values)
-    return np.array([a + int(np.argmax(np.abs(heading_rate[a:b]))) for a, b in zip(mx, mx[1:])
-                     if b > a + 1], dtype=int)
+def corner_indices(ds: xr.Dataset, heading_rate: np.ndarray | None = None) -> np.ndarray:
+    """The samples where theta is at a minimum: the corners, where the path turns (a launch with
+    thetadot0 = 0 that starts at its lowest tilt starts on a corner, so sample 0 counts).
+    `heading_rate` is not used (kept for callers that pass it)."""
+    th = ds.theta.values
+    mins = theta_maxima(-th)
+    starts_low = len(th) > 2 and th[1] > th[0] and float(ds.thetadot.values[0]) == 0.0
+    return np.concatenate([[0], mins]).astype(int) if starts_low else mins.astype(int)
+
+
+def orbit_window(attrs: dict, T: float, orbits: float = 3.0, max_cycles: int = 36) -> float:
+    """A duration (s) that shows `orbits` orbits of a launch, an orbit being 360 deg of net turn:
+    p theta cycles for a star {p/q}, 360/|turn per cycle| cycles otherwise; at most `max_cycles`
+    cycles (a near-straight path turns little) and at most T. T when the launch has no theta
+    period or no turn (a steady circle)."""
+    period, turn = attrs.get("theta_period_s"), attrs.get("turn_per_cycle_deg")
+    if not (_finite(period) and float(period) > 0 and _finite(turn) and float(turn) != 0):
+        return T
+    if attrs.get("label") == "star" and _finite(attrs.get("star_points")):
+        per_orbit = float(attrs["star_points"])
+    else:
+        per_orbit = 360.0 / abs(float(turn))
+    cycles = min(orbits * per_orbit, max_cycles)
+    return float(min(T, cycles * float(period)))
 
 
 def envelope(t: np.ndarray, v: np.ndarray, bins: int = 2000) -> tuple[np.ndarray, np.ndarray]:
@@ -203,63 +339,122 @@ def _dense_rates(ds: xr.Dataset, ball: Ball, max_samples: int = 1_000_001):
     return t, ds.chidot.values, ds.phidot.values
 
 
-def plot_path(ds: xr.Dataset, out, ball: Ball | None = None, title: str | None = None):
-    """One launch like the paper's figures: path coloured by theta with corners marked and the
-    label in the title; theta(t); chidot and phidot (t) at every integration step, drawn through
-    their extremes so the spin spikes near theta = 90 deg keep their height; friction ratio and
-    normal force (t). Legends sit outside the data; no line hides another."""
+def plot_path(ds: xr.Dataset, out, ball: Ball | None = None, title: str | None = None,
+              panels: str = "all", dpi: int = 100):
+    """Draw one launch like the paper's figures.
+
+    Left: the path of the centre of mass coloured by theta, its corners (theta minima) and its
+    start marked, the shape in the title. Right: theta(t); chidot and phidot(t) at every
+    integration step on a symmetric-log scale (linear within +-10 rad/s, so the ordinary motion
+    and the spin spikes near theta = 90 deg both show); friction ratio |F_h|/N and normal force
+    N(t). Written as PNG, PDF or SVG by the suffix of `out`.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        A trajectory from `ballsurvey.simulate` (or a time slice of one).
+    out : str or path
+        The file to write (.png, .pdf or .svg).
+    ball : Ball, optional
+        The ball the launch was integrated for (default: the paper's).
+    title : str, optional
+        The figure's title (default: the launch and the ball).
+    panels : {"all", "path"}
+        "path": only the path, in a small figure (the launch and ball above it).
+    dpi : int
+        Resolution of a PNG (dots per inch; the full figure is 11 x 7.5 in).
+
+    Returns
+    -------
+    The file written.
+    """
+    figure_format(out)
+    return _save(path_figure(ds, ball, title, panels), out, dpi=dpi)
+
+
+def path_figure(ds: xr.Dataset, ball: Ball | None = None, title: str | None = None,
+                panels: str = "all") -> Figure:
+    """The figure `plot_path` writes (a matplotlib `Figure`, not yet saved)."""
     from matplotlib.collections import LineCollection
+    from matplotlib.lines import Line2D
 
     ball = ball or Ball.paper()
     diag = path_diagnostics(ds, ball)
     t = ds.time.values
     x, y, th = ds.x.values, ds.y.values, np.degrees(ds.theta.values)
-    fig = Figure(figsize=(11, 7.5), layout="constrained")
-    gs = fig.add_gridspec(3, 2, width_ratios=[1.25, 1])
+    if panels not in ("all", "path"):
+        raise InputError(f"panels: 'all' or 'path', got {panels!r}")
+    only_path = panels == "path"
+    fig = Figure(figsize=(3.6, 4.3) if only_path else (11, 7.5), layout="constrained")
+    gs = fig.add_gridspec(1, 1) if only_path else fig.add_gridspec(3, 2, width_ratios=[1.25, 1])
     ax = fig.add_subplot(gs[:, 0])
     pts = np.stack([x, y], 1)
     segs = np.stack([pts[:-1], pts[1:]], 1)
     lc = LineCollection(segs, cmap="viridis", linewidths=1.6)
     lc.set_array(0.5 * (th[1:] + th[:-1]))
+    if np.ptp(th) < 1.0:  # a steady launch: a colour scale of one degree, not of rounding noise
+        lc.set_clim(th.mean() - 0.5, th.mean() + 0.5)
     ax.add_collection(lc)
-    fig.colorbar(lc, ax=ax, label=r"$\theta$ (deg)", shrink=0.7)
-    ci = corner_indices(ds, diag["heading_rate"])
+    fig.colorbar(lc, ax=ax, label=r"$\theta$ (deg)", shrink=0.7,
+                 location="bottom" if only_path else "right", aspect=30 if only_path else 20,
+                 format="%g")
+    # corners only where the classifier judged corners (polygons and stars)
+    a = ds.attrs
+    has_corners = a.get("label") in ("triangle", "square", "ngon", "star")
+    ci = corner_indices(ds) if has_corners else np.zeros(0, dtype=int)
     if len(ci):
-        ax.plot(x[ci], y[ci], "o", ms=5, mfc="none", mec="crimson", label="corners", zorder=3)
+        ax.plot(x[ci], y[ci], "o", ms=6, mfc="none", mec=LINE_COLOURS["corner"], mew=1.4,
+                label=r"corner ($\theta$ minimum)", zorder=3)
     ax.plot(x[0], y[0], "k^", ms=7, label="start", zorder=3)
     ax.set_aspect("equal", adjustable="datalim")
     ax.autoscale_view()
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    a = ds.attrs
-    label = a.get("label", "?")
-    extra = f", n = {a['n_sides']:.3f}" if isinstance(a.get("n_sides"), float) and \
-        math.isfinite(a["n_sides"]) else ""
-    ax.set_title(f"{label}{extra}, corners {a.get('corner_kind', '?')}", fontsize=11)
+    ax.set_title(shape_text(a), fontsize=11)
+    if only_path:
+        ax.legend(loc="lower center", bbox_to_anchor=(0.5, 1.08), ncol=2, fontsize=7,
+                  frameon=False, borderaxespad=0.0)
+        fig.suptitle(title or launch_title(a), fontsize=7)
+        return fig
     ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.08), ncol=2, fontsize=8, frameon=False)
     ax1 = fig.add_subplot(gs[0, 1])
     ax1.plot(t, th, "k", lw=1)
+    if len(ci):
+        ax1.plot(t[ci], th[ci], "o", ms=4, mfc="none", mec=LINE_COLOURS["corner"])
     ax1.set_ylabel(r"$\theta$ (deg)")
     ax2 = fig.add_subplot(gs[1, 1], sharex=ax1)
     td, chid, phid = _dense_rates(ds, ball)
-    ax2.plot(*envelope(td, phid), color="tab:orange", lw=2.2, alpha=0.75, label=r"$\dot\phi$",
+    ax2.plot(*envelope(td, phid), color=LINE_COLOURS["phidot"], lw=1.0, label=r"$\dot\phi$",
              zorder=2)
-    ax2.plot(*envelope(td, chid), color="tab:blue", lw=0.9, label=r"$\dot\chi$", zorder=3)
-    ax2.set_ylabel("rate (rad/s)")
+    ax2.plot(*envelope(td, chid), color=LINE_COLOURS["chidot"], lw=1.0, ls=(0, (4, 1.5)),
+             label=r"$\dot\chi$", zorder=3)
+    ax2.set_yscale("symlog", linthresh=10.0, linscale=1.0)
+    ax2.axhline(0.0, color="0.6", lw=0.5, zorder=1)
+    ax2.set_ylabel("rate (rad/s)\nlinear to $\\pm$10, then log", fontsize=9)
     ax2.legend(loc="lower left", bbox_to_anchor=(1.0, 0.0), fontsize=8, frameon=False,
                borderaxespad=0.2)
     ax3 = fig.add_subplot(gs[2, 1], sharex=ax1)
     ax4 = ax3.twinx()
-    ax4.plot(t, diag["normal_N"], color="tab:blue", lw=1.8, alpha=0.6)
-    ax4.set_ylabel("N (N)", color="tab:blue")
-    ax3.plot(t, diag["friction_ratio"], color="tab:red", lw=1)
+    ax4.plot(t, diag["normal_N"], color=LINE_COLOURS["normal"], lw=1.2, ls=(0, (4, 1.5)))
+    ax4.set_ylabel("N (N), dashed", color=LINE_COLOURS["normal"])
+    ax3.plot(t, diag["friction_ratio"], color=LINE_COLOURS["friction"], lw=1)
     ax3.set_zorder(ax4.get_zorder() + 1)  # |F|/N in front of N
     ax3.patch.set_visible(False)
-    ax3.set_ylabel(r"$|F_h|/N$", color="tab:red")
+    ax3.set_ylabel(r"$|F_h|/N$, solid", color=LINE_COLOURS["friction"])
     ax3.set_xlabel("t (s)")
-    fig.suptitle(title or (rf"$\theta_0$ = {a.get('theta0_deg')} deg, $\dot\theta_0$ = "
-                           rf"{a.get('thetadot0')}, $\dot\chi_0$ = {a.get('chidot0')}, "
-                           rf"$\dot\phi_0$ = {a.get('phidot0'):.4g} rad/s, T = {a.get('T_s')} s"),
-                 fontsize=11)
-    fig.savefig(out, dpi=110)
-    return out
+    ax3.legend(handles=[Line2D([], [], color=LINE_COLOURS["friction"], lw=1, label=r"$|F_h|/N$"),
+                        Line2D([], [], color=LINE_COLOURS["normal"], lw=1.2, ls=(0, (4, 1.5)),
+                               label="N")],
+               loc="lower left", bbox_to_anchor=(1.12, 0.0), fontsize=8, frameon=False)
+    fig.suptitle(title or launch_title(a), fontsize=11)
+    return fig
+
+
+def launch_title(attrs: dict) -> str:
+    """A path figure's title: the launch in the symbols of the axes, its duration, the ball."""
+    parts = [axis_value_text(k, float(attrs[k])) for k in ("theta0_deg", "thetadot0",
+                                                              "chidot0", "phidot0")
+             if _finite(attrs.get(k))]
+    if _finite(attrs.get("chi0_deg")) and float(attrs["chi0_deg"]) != 0.0:
+        parts.append(axis_value_text("chi0_deg", float(attrs["chi0_deg"])))
+    return ", ".join(parts) + "\n" + ball_text(attrs)

@@ -40,7 +40,8 @@ def query_frame(ds: xr.Dataset, shape: str | None = None, n_sides: int | None = 
     Best first: for polygons and stars, by |n_sides - N| (N the nearest whole n, or the asked one)
     then closure_m; for other words, by launch order. max_n_error keeps rows with
     |n_sides - N| <= E, max_closure those whose corner drifts at most that far (m) per circuit.
-    Columns: the launch conditions (plain names; units in `df.attrs['units']`), label, n_sides,
+    Columns: the launch conditions (plain names; units in `df.attrs['units']`), label (and for
+    stars `star`, their {p/q}), n_sides,
     n_sides_error (|n_sides - N|), closure_m, theta_max_deg and near_vertical (theta max above
     89 deg: numerically delicate). `df.attrs['matched']` is the number of rows.
     """
@@ -98,6 +99,10 @@ def query_frame(ds: xr.Dataset, shape: str | None = None, n_sides: int | None = 
         v = np.broadcast_to(flat[c].values, label.shape)[idx]  # scalar coords (chi0_deg) too
         cols[c] = v.astype(str) if c == "name" else v.astype(float)
     cols["label"] = decode_label(label[idx]).astype(str)
+    if shape == "star" and "star_points" in flat and "star_step" in flat:  # its {p/q}
+        pq = zip(flat.star_points.values[idx], flat.star_step.values[idx])
+        cols["star"] = [f"{{{int(a)}/{int(b)}}}" if np.isfinite(a) and np.isfinite(b) and a > 0
+                        else "" for a, b in pq]
     cols["n_sides"] = ns[idx].astype(float)
     cols["n_sides_error"] = err[idx].astype(float)
     cols["closure_m"] = closure[idx].astype(float)

@@ -46,25 +46,97 @@ def check_simulate_inputs(theta0_deg, thetadot0, chidot0, phidot0, T, dt, chi0_d
     limits.tolerances(rtol, atol)
 
 
+def _contact_along(s, p) -> tuple[np.ndarray, np.ndarray]:
+    """Friction ratio |F_h|/N (inf where N <= 0) and normal force N / (M g) at each sample of a
+    trajectory (rows of the fast state), from the contact force of Eqs. (16)-(20)."""
+    from .physics.euler import contact
+
+    n = s.shape[0]
+    fric, normal = np.empty(n), np.empty(n)
+    for k in range(n):
+        r = s[k]
+        u = np.array([r[S_X], r[S_Y], r[S_TH], r[S_CHI], r[S_PHI], r[S_THD], r[S_CHD], r[S_PHD]])
+        fx, fy, nn = contact(u, p)[:3]
+        fric[k] = math.hypot(fx, fy) / nn if nn > 0 else math.inf
+        normal[k] = nn
+    return fric, normal
+
+
+def _sample_times(t: np.ndarray, T: float, n: int) -> np.ndarray:
+    """The sample times: k T / (n - 1) computed so (0.005, not 0.004999999999999999) where the
+    samples are evenly spaced over T, as the fixed-step and dense-output samples are; `t` as it
+    came where it is not (a run that stopped early)."""
+    even = (np.arange(len(t)) * float(T)) / (n - 1) if n > 1 else t
+    if len(t) == n and np.allclose(even, t, rtol=0, atol=1e-9 * max(1.0, float(T))):
+        return even
+    return t
+
+
 def simulate(theta0_deg: float, thetadot0: float, chidot0: float, phidot0: float, T: float,
              dt: float = 1e-4, chi0_deg: float = 0.0, x0: float = 0.0, y0: float = 0.0,
              ball: Ball | None = None, n_out: int = 2001, method: str = "rk4",
              thresholds: Thresholds | None = None, rtol: float = 1e-9,
              atol: float = 1e-12) -> xr.Dataset:
-    """Integrate one launch and return its trajectory.
+    """Integrate one launch and return its trajectory, labelled like a map's launch.
 
-    theta0_deg, chi0_deg: initial tilt and heading (deg); thetadot0, chidot0, phidot0: initial
-    rates (rad/s); T: duration (s); x0, y0: initial centre-of-mass position (m).
-    method: a fixed-step method (rk4, rk38, ssprk3, heun) — dt is the largest step (s), the step
-    used is T/N for the smallest N >= T/dt that is a multiple of n_out - 1, so the n_out samples
-    fall exactly on steps — or "dopri5"/"adaptive" with rtol, atol, whose n_out samples come from
-    the pair's dense output (the first trial step is T / ceil(T/dt)).
-    The attrs' fields are SI, the same units as in a map (`ballsurvey.units.fields_to_si`).
+    Parameters
+    ----------
+    theta0_deg : float
+        Initial tilt of the symmetry axis (deg): 0 has the axis horizontal, positive tips the
+        centre of mass down (its height is a - c sin theta); |theta0| < 90 and the flat face
+        off the table (theta0 above -31.8 deg for the paper's ball).
+    thetadot0 : float
+        Initial rate of tilt (rad/s).
+    chidot0 : float
+        Initial rate of heading, the precession rate (rad/s).
+    phidot0 : float
+        Initial spin rate (rad/s).
+    T : float
+        Duration (s).
+    dt : float
+        Fixed-step methods: the largest step (s); the step used is T/N for the smallest N >=
+        T/dt that is a multiple of n_out - 1, so the samples fall exactly on steps. Adaptive:
+        the first trial step is T / ceil(T/dt).
+    chi0_deg : float
+        Initial heading (deg).
+    x0 : float
+        Initial x of the centre of mass (m).
+    y0 : float
+        Initial y of the centre of mass (m).
+    ball : Ball, optional
+        The ball (default: the paper's truncated billiard ball).
+    n_out : int
+        Samples kept, evenly spaced from 0 to T.
+    method : str
+        rk4, rk38, ssprk3, heun (fixed step) or dopri5 / adaptive (with rtol, atol; samples from
+        the pair's dense output).
+    thresholds : Thresholds, optional
+        The classifier's thresholds (default: `Thresholds()`).
+    rtol : float
+        Relative tolerance of the adaptive method.
+    atol : float
+        Absolute tolerance of the adaptive method.
+
+    Returns
+    -------
+    xarray.Dataset
+        On `time` (s): x, y (m); theta_deg, chi_deg, phi_deg (deg) and the same angles theta,
+        chi, phi in rad (as the equations use them); thetadot, chidot, phidot (rad/s); energy
+        (J); friction_ratio (|F_h|/N: the launch slips where it exceeds mu) and normal_force
+        (N, lifts off where <= 0). Its attrs hold the label, the classifier's fields in SI
+        (as in a map), the launch, the method and step used, and the ball (`ball_a`, ...).
+
+    Notes
+    -----
     A launch whose tilt reaches 90 deg (the Euler form's singularity) is integrated again in the
     fixed-frame form (attrs formulation = "fixed_frame"), with the map's fallback settings.
+    Inputs are checked by the rules of `ballsurvey.limits`: a bad one raises InputError.
 
-    Returns a Dataset on `time` (s) with x, y (m), theta, chi, phi (rad), thetadot, chidot, phidot
-    (rad/s) and energy (J); its attrs hold the label and the classifier's fields.
+    Examples
+    --------
+    >>> ds = ballsurvey.simulate(theta0_deg=-5, thetadot0=0, chidot0=4.05, phidot0=-3, T=20)
+    >>> ds.attrs["label"], round(ds.attrs["n_sides"], 2)   # the paper's Fig. 12a
+    ('square', 4.0)
     """
     ball = ball or Ball.paper()
     check_simulate_inputs(theta0_deg, thetadot0, chidot0, phidot0, T, dt, chi0_deg, x0, y0, ball,
@@ -82,6 +154,7 @@ def simulate(theta0_deg: float, thetadot0: float, chidot0: float, phidot0: float
     formulation = FORMULATIONS[int(res.formulation[0])]
     dt_used = plan.dt_nd * tu if fixed else math.nan
     e = np.array([energy(r[S_STH], r[S_CTH], r[S_THD], r[S_CHD], r[S_PHD], *p) for r in s])
+    fric, normal = _contact_along(s, p)
     f = fields_to_si(classify(res, ball.flat_face_theta_rad, th), a, tu, ball.M)
 
     def var(values, units, long_name):
@@ -97,10 +170,16 @@ def simulate(theta0_deg: float, thetadot0: float, chidot0: float, phidot0: float
             "thetadot": var(s[:, S_THD] / tu, "rad s-1", "rate of theta"),
             "chidot": var(s[:, S_CHD] / tu, "rad s-1", "rate of chi (precession)"),
             "phidot": var(s[:, S_PHD] / tu, "rad s-1", "rate of phi (spin)"),
+            "theta_deg": var(np.degrees(s[:, S_TH]), "degree", "tilt theta in degrees"),
+            "chi_deg": var(np.degrees(s[:, S_CHI]), "degree", "heading chi in degrees"),
+            "phi_deg": var(np.degrees(s[:, S_PHI]), "degree", "spin angle phi in degrees"),
             "energy": var(e * ball.M * ball.g * a, "J",
                           "kinetic plus potential energy, Eqs. (11)-(12)"),
+            "friction_ratio": var(fric, "1", "friction demand |F_h|/N (slips where above mu)"),
+            "normal_force": var(normal * ball.M * ball.g, "N",
+                                "normal force of the table N (lifts off where <= 0)"),
         },
-        coords={"time": ("time", t_nd * tu,
+        coords={"time": ("time", _sample_times(t_nd * tu, T, n_out),
                          {"units": "s", "long_name": "time", "standard_name": "time"})},
     )
     label = LABELS[int(f.pop("label")[0])]

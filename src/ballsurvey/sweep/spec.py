@@ -1,6 +1,6 @@
 """Sweep specs: TOML in, a validated `Spec` out. Every problem is one line naming the key.
 
-Format (all keys documented in README.md, "Sweep spec"):
+Format (all keys documented in docs/specs.md, "Sweep specs"):
 
     title = "..."
     [ball]      preset = "paper" | a, c, M, A, B (SI), g, cut_height | a, cut_height, M (geometry)
