@@ -41,6 +41,10 @@ MAP_METHODS = METHODS + tuple(LANE_ADAPTIVE)
 FALLBACK_RTOL = 1e-10
 FALLBACK_ATOL = 1e-12
 FALLBACK_H_INIT = 1e-3  #: the fixed-frame re-run's first trial step (non-dimensional)
+#: the fixed-frame re-run's longest step (non-dimensional; 5.3 ms for the paper's ball): the
+#: observer sees each accepted step, and a slow launch (a ball rocking a hair from the upright)
+#: would otherwise take a handful of steps a theta cycle, too few to see its shape
+FALLBACK_H_MAX = 0.1
 #: a launch that blew up after its tilt passed this (rad) is taken to have met the Euler chart's
 #: singularity (chidot ~ 1 / cos theta outruns the fixed step), not a step too large
 NEAR_SINGULAR_THETA = math.radians(80.0)
@@ -81,7 +85,7 @@ def _fixed_frame(y0, params, T_nd, *, parallel, stop_after=0) -> oc.Result:
     """The fallback's integration: adaptive, in the fixed frame, observed."""
     return integrate_adaptive(y0, params, T_nd, FALLBACK_RTOL, FALLBACK_ATOL, observer=OBSERVER,
                               n_slots=N_OBS, fixed_frame=True, h_init=FALLBACK_H_INIT,
-                              parallel=parallel, stop_after=stop_after)
+                              parallel=parallel, stop_after=stop_after, h_max=FALLBACK_H_MAX)
 
 
 def fixed_frame_fallback(y0, params, T_nd, res: oc.Result, *, thresholds=Thresholds(),
@@ -178,7 +182,8 @@ def run_trajectory(y0_col, params_col, plan: StepPlan, method="rk4", *, n_out=20
     if needs_fallback(res, thresholds)[0]:
         res = trajectory_adaptive(y0[:, 0], p[:, 0], plan.T_nd, FALLBACK_RTOL, FALLBACK_ATOL,
                                   observer=OBSERVER, n_slots=N_OBS, t_out=res.t,
-                                  fixed_frame=True, h_init=FALLBACK_H_INIT)
+                                  fixed_frame=True, h_init=FALLBACK_H_INIT,
+                                  h_max=FALLBACK_H_MAX)
     return res
 
 
@@ -237,4 +242,4 @@ def warm_up_fallback() -> None:
     params = np.repeat(np.array([[0.1], [0.4], [0.4]]), 2, 1)
     integrate_adaptive(y0, params, 0.01, FALLBACK_RTOL, FALLBACK_ATOL, observer=OBSERVER,
                        n_slots=N_OBS, fixed_frame=True, h_init=FALLBACK_H_INIT, parallel=True,
-                       stop_after=stop_target(2))
+                       stop_after=stop_target(2), h_max=FALLBACK_H_MAX)

@@ -176,8 +176,8 @@ def label_fields(obs: np.ndarray, flat_face_theta, th: Thresholds = Thresholds()
         # samples per theta cycle: those the observer saw in the last cycle, and pi times theta's
         # range over the largest change of theta between samples (the count for a sinusoid);
         # the smaller, since samples far apart can alias a cycle into several
-        by_rate = math.pi * (o[ob.O_TH_MAX] - o[ob.O_TH_MIN]) / o[ob.O_THD_STEP]
-        samples = np.fmin(o[ob.O_C_NSAMP], by_rate)
+        by_step = math.pi * (o[ob.O_TH_MAX] - o[ob.O_TH_MIN]) / o[ob.O_TH_STEP]
+        samples = np.fmin(o[ob.O_C_NSAMP], by_step)
 
     # steady rolling: launched at rest in theta with no theta acceleration, and theta stayed put
     # (a short run of any launch also keeps theta nearly still: that is `unresolved`, not steady)

@@ -63,7 +63,7 @@ SLOTS = (
     "n_min", "xm_last", "ym_last", "cyc_side",
     "thd0", "thdd0",
     "p_sth", "p_cth", "p_chd", "p_u", "p_w", "p_psid", "psi_last",
-    "acc_nsamp", "cyc_nsamp", "hd_sum", "hd_n", "p_sdd", "thd_step_max",
+    "acc_nsamp", "cyc_nsamp", "hd_sum", "hd_n", "p_sdd", "th_step_max", "p_th",
 )
 N_OBS = len(SLOTS)
 (O_TH_MIN, O_TH_MAX, O_E0, O_J0, O_R0, O_DE, O_DJ, O_DR, O_FRIC, O_NMIN,
@@ -76,7 +76,7 @@ N_OBS = len(SLOTS)
  O_NMIN_EV, O_XM, O_YM, O_C_SIDE,
  O_THD0, O_THDD0,
  O_P_STH, O_P_CTH, O_P_CHD, O_P_U, O_P_W, O_P_PSID, O_PSIL,
- O_A_NSAMP, O_C_NSAMP, O_HD_SUM, O_HD_N, O_P_SDD, O_THD_STEP) = range(N_OBS)
+ O_A_NSAMP, O_C_NSAMP, O_HD_SUM, O_HD_N, O_P_SDD, O_TH_STEP, O_P_TH) = range(N_OBS)
 
 jit = njit(cache=True, nogil=True, error_model="numpy")  # stamped cache: _jit.py
 
@@ -223,7 +223,7 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
         obs[O_A_NSAMP, i] = 0.0
         obs[O_HD_SUM, i] = 0.0
         obs[O_HD_N, i] = 0.0
-        obs[O_THD_STEP, i] = 0.0
+        obs[O_TH_STEP, i] = 0.0
         obs[O_C_NSAMP, i] = math.nan
     else:
         obs[O_TH_MIN, i] = min(obs[O_TH_MIN, i], th)
@@ -257,7 +257,7 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
             obs[O_A_RMAX, i] = r
         # --- theta minimum: thetadot turns from - to + (where the path turns: a corner) -------
         obs[O_A_NSAMP, i] += 1.0
-        obs[O_THD_STEP, i] = max(obs[O_THD_STEP, i], abs(thd) * (t - obs[O_P_T, i]))
+        obs[O_TH_STEP, i] = max(obs[O_TH_STEP, i], abs(th - obs[O_P_TH, i]))
         if obs[O_P_THD, i] < 0.0 and thd >= 0.0:
             _, _, th_ev, _, xm, ym, _, _ = _locate(obs, i, t, x, y, sth, cth, chi, thd, chd, u,
                                                    w, psid, sdd)
@@ -346,6 +346,7 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
     obs[O_P_W, i] = w
     obs[O_P_PSID, i] = psid
     obs[O_P_SDD, i] = sdd
+    obs[O_P_TH, i] = th
 
 
 @jit

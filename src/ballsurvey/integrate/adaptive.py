@@ -36,8 +36,9 @@ def make_kernels(observer: Observer):
     return bind("adaptive", (Path(__file__).parent / "adaptive_kernel.py").read_text(), observer)
 
 
-def _tol(tableau, rtol, atol, h_init, cos_min):
-    return np.array([rtol, atol, h_init, cos_min, tableau.error_exponent], dtype=np.float64)
+def _tol(tableau, rtol, atol, h_init, cos_min, h_max=np.inf):
+    return np.array([rtol, atol, h_init, cos_min, tableau.error_exponent, h_max],
+                    dtype=np.float64)
 
 
 def _tab(tableau):
@@ -46,7 +47,8 @@ def _tab(tableau):
 
 def integrate_adaptive(y0, params, T, rtol=1e-9, atol=1e-12, *, observer: Observer, n_slots: int,
                        fixed_frame=False, cos_min=1e-3, h_init=1e-3, max_steps=MAX_STEPS,
-                       parallel=True, tableau: EmbeddedTableau = DOPRI5, stop_after=0) -> Result:
+                       parallel=True, tableau: EmbeddedTableau = DOPRI5, stop_after=0,
+                       h_max=np.inf) -> Result:
     """Adaptive integration of fast-state launches y0 (N_FAST, n) for non-dimensional time T.
 
     fixed_frame: integrate the Euler-free form (no singularity at theta = 90 deg); the observer
@@ -64,7 +66,7 @@ def integrate_adaptive(y0, params, T, rtol=1e-9, atol=1e-12, *, observer: Observ
     mod = make_kernels(observer)
     run = mod.run_parallel if parallel else mod.run_serial
     run(y0, params, float(T), _tol(tableau, float(rtol), float(atol), float(h_init),
-                                   float(cos_min)),
+                                   float(cos_min), float(h_max)),
         _tab(tableau), obs, bool(fixed_frame), int(max_steps), steps, y_end,
         int(stop_after), outcome, t_stop)
     form = FIXED_FRAME if fixed_frame else EULER_ANGLES
@@ -75,7 +77,8 @@ def integrate_adaptive(y0, params, T, rtol=1e-9, atol=1e-12, *, observer: Observ
 
 def trajectory_adaptive(y0_col, params_col, T, rtol=1e-9, atol=1e-12, *, observer: Observer,
                         n_slots: int, t_out=None, fixed_frame=False, cos_min=1e-3, h_init=1e-3,
-                        max_steps=MAX_STEPS, tableau: EmbeddedTableau = DOPRI5) -> Result:
+                        max_steps=MAX_STEPS, tableau: EmbeddedTableau = DOPRI5,
+                        h_max=np.inf) -> Result:
     """One launch with its trajectory kept: Result with t (m,) and traj (m, N_FAST), the other
     fields of shape (1,) / (n_slots, 1). In the fixed-frame form the states are the Euler view.
 
@@ -86,7 +89,7 @@ def trajectory_adaptive(y0_col, params_col, T, rtol=1e-9, atol=1e-12, *, observe
     y0_col = np.ascontiguousarray(y0_col, dtype=np.float64)
     params_col = np.ascontiguousarray(params_col, dtype=np.float64)
     mod = make_kernels(observer)
-    tol = _tol(tableau, float(rtol), float(atol), float(h_init), float(cos_min))
+    tol = _tol(tableau, float(rtol), float(atol), float(h_init), float(cos_min), float(h_max))
     dense = t_out is not None
     # times a rounding past T (a fixed-step run's last sample) are taken at T
     t_out = np.minimum(np.asarray(t_out if dense else np.empty(0), dtype=np.float64), float(T))

@@ -108,7 +108,7 @@ def adaptive_one(y0, p, T, tol, tab, obs, i, fixed_form, max_steps, traj, t_rec,
     t_rec (cap,) get the state at the start and at each accepted step while there is room (cap may
     be 0). y_last (N_FAST,): the final (Euler view of the) state. Returns (accepted steps,
     outcome, time reached)."""
-    rtol, atol, h_init, cos_min, err_exp = tol[0], tol[1], tol[2], tol[3], tol[4]
+    rtol, atol, h_init, cos_min, err_exp, h_max = tol[0], tol[1], tol[2], tol[3], tol[4], tol[5]
     a, b, berr, dense = tab
     ns = b.shape[0]
     nv = fixed.N_FIXED if fixed_form else N_FAST
@@ -135,7 +135,7 @@ def adaptive_one(y0, p, T, tol, tab, obs, i, fixed_form, max_steps, traj, t_rec,
         fast_rhs_into(y, p, k[0])
         _record_fast(obs, i, True, 0.0, 0.0, y, k[0], p)
     t = 0.0
-    h = min(h_init, T)
+    h = min(h_init, T, h_max)
     status = OK
     n_acc = 0
     n_out = t_out.shape[0]
@@ -208,7 +208,7 @@ def adaptive_one(y0, p, T, tol, tab, obs, i, fixed_form, max_steps, traj, t_rec,
                 break  # period mode: the observer has seen enough
             fac = (MAX_FACTOR if err == 0.0
                    else min(MAX_FACTOR, max(MIN_FACTOR, SAFETY * err ** err_exp)))
-            h *= fac
+            h = min(h * fac, h_max)
         else:
             h *= max(MIN_FACTOR, SAFETY * err ** err_exp)
             if h < STEP_FLOOR * max(T, 1.0):
