@@ -7,13 +7,26 @@ same right-hand side and the observer it is handed (an `Observer`, as the CPU ke
 numba-compiled CPU functions are re-targeted to CUDA device functions from their Python source
 (`device_twin`), so a formula or an observer quantity is written once for both backends.
 
-Layout: state and observer slots are (variable, launch) arrays, so consecutive threads touch
-consecutive addresses (coalesced). Launches are streamed through the card in batches
-(`batch` launches at a time, by default sized to a quarter of its free memory), so a map larger
-than the card works; only the observer slots and the end states come back.
+Layout: state arrays are (variable, launch), so consecutive threads touch consecutive addresses
+(coalesced). The observer's record stays in global memory, never in registers: on the card it is
+an array of tiles, one a warp (`TILE` launches), each tile a (slot, lane) block, so slot k of
+launch i sits at (i // TILE) * n_slots * TILE + k * TILE + i % TILE (coalesced as well). The tile's
+shape is part of the array's type (a numpy record with one sub-array field, `record_dtype`), so
+the compiler knows every slot's offset from the tile's start: one base address a thread instead
+of one 64-bit address a slot, which the compiler hoisted out of the step loop into registers (and
+spilt). The kernel is compiled again for another number of slots, so an observer that gains slots
+needs no change here. The RK stages are written out from the tableau with each group of equal
+weights summed as soon as its last stage exists (`streamed_stage_source`: the same operations in
+the same order as the CPU kernel, with fewer stages alive at once). `benchmarks/ptxas.py` reports
+registers and spills for sm_90 without a GPU (`compile_ptx`).
+
+Launches are streamed through the card in batches (`batch` launches at a time, by default sized to
+a quarter of its free memory), so a map larger than the card works; only the observer slots and
+the end states come back.
 
 Results agree with the CPU backend to rounding (the operations are the same, but the GPU compiler
-may contract a * b + c into one fused multiply-add), not bit for bit. A lane that turns non-finite
+may contract a * b + c into one fused multiply-add), not bit for bit; in the simulator, bit for
+bit. A lane that turns non-finite
 or reaches the Euler chart's singularity stops there (the CPU kernel keeps stepping its frozen
 lane inside the SIMD block); its observer record is the same.
 
@@ -32,9 +45,18 @@ from ..physics.euler import accelerations
 from ..physics.fast import N_FAST, fast_rhs
 from .binding import Observer
 from .outcome import CHART_SINGULAR, EULER_ANGLES, NONFINITE, Result
-from .tableaus import FIXED_STEP, Tableau, stage_source, step_constants
+from .tableaus import FIXED_STEP, Tableau, _grouped, stage_source, step_constants
 
 THREADS_PER_BLOCK = 128
+#: launches a tile of the observer record holds (a warp: one tile's slot k is one 256-byte line)
+TILE = 32
+#: the record dtype's one field: a (slot, lane) float64 block
+TILE_FIELD = "slots"
+#: the observer record's layouts on the card (`kernel_source`): "tiles" is the one in use,
+#: "columns" the plain (slot, launch) array, kept to be measured against (benchmarks/ptxas.py)
+RECORD_LAYOUTS = ("tiles", "columns")
+#: how the RK update sums its stages: "streamed" (in use) or "final" (the CPU kernel's text)
+STAGE_SUMS = ("streamed", "final")
 
 
 class BackendError(RuntimeError):
@@ -82,6 +104,7 @@ def kernel(y0, params, dt, n_steps, cos_min, observer_on, observe_every, obs, y_
     i = cuda.grid(1)
     if i >= y0.shape[1]:
         return
+{record_view}
 {load}
     c = params[0, i]
     A = params[1, i]
@@ -94,10 +117,10 @@ def kernel(y0, params, dt, n_steps, cos_min, observer_on, observe_every, obs, y_
         t = n * dt
         if observer_on and (n % observe_every == 0 or n == n_steps):
             thdd, chdd, phdd = accelerations(r8, r9, r5, r6, r7, c, A, B)
-            record(obs, i, n == 0, t, t - t_seen, r0, r1, r2, r8, r9, r3, r5, r6, r7, thdd, chdd,
+            record({rec}, n == 0, t, t - t_seen, r0, r1, r2, r8, r9, r3, r5, r6, r7, thdd, chdd,
                    phdd, c, A, B, math.nan, math.nan, math.nan)
             t_seen = t
-            if stop_after > 0 and done(obs, i, stop_after):
+            if stop_after > 0 and done({rec}, stop_after):
                 break  # period mode: enough theta cycles seen
         if n == n_steps:
             break
@@ -118,12 +141,55 @@ def kernel(y0, params, dt, n_steps, cos_min, observer_on, observe_every, obs, y_
     t_stop_out[i] = t_stop
 '''
 
+#: (how the kernel names launch i's record, what it calls record and done with), by layout
+_RECORD_VIEW = {
+    "tiles": (f"    tile = obs[i // {TILE}][{TILE_FIELD!r}]\n    lane = i % {TILE}", "tile, lane"),
+    "columns": ("", "obs, i"),
+}
 
-def kernel_source(tab: Tableau) -> str:
-    """The CUDA kernel's Python source for a tableau (the stages written out, as on the CPU)."""
+
+def streamed_stage_source(tab: Tableau, n_vars: int, indent: str) -> tuple[str, str]:
+    """`tableaus.stage_source`'s step with the update's sums formed early: each group of equal
+    weights (RK4's k0 + k3 and k1 + k2) is summed as soon as its last stage exists, left to right
+    as the CPU kernel's text sums it, so the stages it holds need not stay alive to the end of the
+    step. The same floating-point operations in the same order: the same numbers, bit for bit."""
+    v = range(n_vars)
+    full, _ = stage_source(tab, n_vars, indent)
+    lines = full.splitlines()  # k0 = ..., then s1 = ..., k1 = ..., s2 = ..., ...
+    groups = _grouped(enumerate(tab.b))
+    out = [lines[0]]
+    for s in range(tab.stages):
+        if s > 0:
+            out += lines[2 * s - 1:2 * s + 1]
+        for g, (_, js) in enumerate(groups):
+            if s in js[1:]:  # this stage extends group g's running sum
+                prev = f"k{js[0]}" if s == js[1] else f"g{g}"
+                out.append(f"{indent}g{g} = (" + ", ".join(f"{prev}[{q}] + k{s}[{q}]" for q in v)
+                           + ")")
+    names = [f"dtb{g}" for g in range(len(groups))]
+    sums = [(h, f"g{g}" if len(js) > 1 else f"k{js[0]}") for g, (h, (_, js)) in
+            enumerate(zip(names, groups))]
+    update = "\n".join(
+        f"{indent}r{q} = s0[{q}] + (" + " + ".join(f"{h} * {ref}[{q}]" for h, ref in sums) + ")"
+        for q in v)
+    return "\n".join(out), update
+
+
+def kernel_source(tab: Tableau, *, record: str = "tiles", sums: str = "streamed") -> str:
+    """The CUDA kernel's Python source for a tableau (the stages written out, as on the CPU).
+
+    record: the observer record's layout (RECORD_LAYOUTS); sums: how the update sums its stages
+    (STAGE_SUMS). The defaults are the kernel `integrate` runs; the others are there to be
+    measured against it (benchmarks/ptxas.py)."""
+    if record not in RECORD_LAYOUTS or sums not in STAGE_SUMS:
+        raise ValueError(f"record must be one of {RECORD_LAYOUTS}, sums one of {STAGE_SUMS}")
     v = range(N_FAST)
-    stages, update = stage_source(tab, N_FAST, " " * 8)
+    make = streamed_stage_source if sums == "streamed" else stage_source
+    stages, update = make(tab, N_FAST, " " * 8)
+    view, rec = _RECORD_VIEW[record]
     return _TEMPLATE.format(
+        record_view=view,
+        rec=rec,
         load="\n".join(f"    r{q} = y0[{q}, i]" for q in v),
         tuple_r=", ".join(f"r{q}" for q in v),
         stages=stages,
@@ -133,12 +199,12 @@ def kernel_source(tab: Tableau) -> str:
     )
 
 
-@cache
-def make_kernel(method: str, observer: Observer):
-    """The compiled CUDA kernel for a fixed-step method named in FIXED_STEP, with `observer`."""
+def kernel_function(method: str, observer: Observer, cuda, **variant):
+    """The kernel as a Python function whose globals are the device twins of the right-hand side
+    and of the observer (for `cuda.jit`, or `cuda.compile_ptx` without a GPU). variant:
+    `kernel_source`'s record and sums."""
     if method not in FIXED_STEP:
         raise ValueError(f"unknown method {method!r}; known: {', '.join(FIXED_STEP)}")
-    cuda = cuda_module()
     memo: dict = {}
     ns = {
         "cuda": cuda, "math": math,
@@ -148,9 +214,37 @@ def make_kernel(method: str, observer: Observer):
         "done": device_twin(observer.done, cuda, memo),
         "NONFINITE": NONFINITE, "CHART_SINGULAR": CHART_SINGULAR,
     }
-    src = kernel_source(FIXED_STEP[method])
+    src = kernel_source(FIXED_STEP[method], **variant)
     exec(compile(src, f"<ballsurvey cuda kernel {method}>", "exec"), ns)
-    return cuda.jit(ns["kernel"])
+    return ns["kernel"]
+
+
+def record_dtype(n_slots: int) -> np.dtype:
+    """The observer record's element on the card: one tile, a (n_slots, TILE) float64 block."""
+    return np.dtype([(TILE_FIELD, np.float64, (n_slots, TILE))])
+
+
+def nan_tiles(n_slots: int, m: int) -> np.ndarray:
+    """The record of m launches as the card holds it, every slot NaN: ceil(m / TILE) tiles."""
+    tiles = np.empty(-(-m // TILE), dtype=record_dtype(n_slots))
+    tiles[TILE_FIELD] = np.nan
+    return tiles
+
+
+def from_tiles(tiles: np.ndarray, m: int) -> np.ndarray:
+    """The card's tiles -> (n_slots, m) record columns: launch i's slot k is tile i // TILE,
+    row k, lane i % TILE."""
+    block = tiles[TILE_FIELD]  # (n_tiles, n_slots, TILE)
+    return block.transpose(1, 0, 2).reshape(block.shape[1], -1)[:, :m]
+
+
+@cache
+def make_kernel(method: str, observer: Observer):
+    """The compiled CUDA kernel for a fixed-step method named in FIXED_STEP, with `observer`."""
+    if method not in FIXED_STEP:
+        raise ValueError(f"unknown method {method!r}; known: {', '.join(FIXED_STEP)}")
+    cuda = cuda_module()
+    return cuda.jit(kernel_function(method, observer, cuda))
 
 
 def threads_per_block() -> int:
@@ -200,7 +294,7 @@ def integrate(y0, params, dt, n_steps, method="rk4", *, observer: Observer, n_sl
     for lo in range(0, n, batch):
         hi = min(n, lo + batch)
         m = hi - lo
-        d_obs = cuda.to_device(np.full((slots, m), np.nan))
+        d_obs = cuda.to_device(nan_tiles(slots, m))
         d_end = cuda.device_array((N_FAST, m))
         d_out = cuda.device_array(m, dtype=np.int8)
         d_stop = cuda.device_array(m)
@@ -210,7 +304,7 @@ def integrate(y0, params, dt, n_steps, method="rk4", *, observer: Observer, n_sl
             cuda.to_device(np.ascontiguousarray(params[:, lo:hi])), float(dt), int(n_steps),
             float(cos_min), n_slots > 0, max(1, int(observe_every)), d_obs, d_end,
             int(stop_after), d_out, d_stop)
-        obs[:, lo:hi] = d_obs.copy_to_host()
+        obs[:, lo:hi] = from_tiles(d_obs.copy_to_host(), m)
         y_end[:, lo:hi] = d_end.copy_to_host()
         outcome[lo:hi] = d_out.copy_to_host()
         t_stop[lo:hi] = d_stop.copy_to_host()

@@ -1,0 +1,170 @@
+"""Registers, spills and local memory of the CUDA kernel per thread, for an NVIDIA architecture,
+measured without a GPU: the kernel is compiled to PTX by numba-cuda (`numba.cuda.compile_ptx`)
+and assembled by NVIDIA's `ptxas -v`, which reports what the card would run.
+
+    pip install numba-cuda nvidia-cuda-nvcc-cu12 nvidia-cuda-nvrtc-cu12
+    python benchmarks/ptxas.py [--method rk4,rk38] [--arch sm_90] [--cap 128]
+
+One row per kernel variant (`integrate.cuda.kernel_source`): the observer record as tiles (in
+use) or as plain (slot, launch) columns, and the RK update summing its stages as they come
+(streamed, in use) or at the end (final, the CPU kernel's text). Columns: registers a thread,
+spill stores and loads (bytes a thread), stack frame (local memory, bytes a thread), shared
+memory (bytes a block), and the warps an SM can hold by registers alone (65536 registers an SM,
+allocated 8 a thread at a time: an H100 SM holds at most 64 warps). --cap N adds the variant in
+use compiled with `ptxas -maxrregcount N`: what capping registers would cost in spills.
+
+ptxas is found as $PTXAS, in the nvidia-cuda-nvcc-cu12 wheel, or on PATH.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import types
+from contextlib import contextmanager
+from importlib.metadata import version
+from pathlib import Path
+
+import numpy as np
+
+REGISTERS_PER_SM = 65536
+MAX_WARPS_PER_SM = 64
+
+
+def find_ptxas() -> str:
+    """Path of ptxas: $PTXAS, the nvidia-cuda-nvcc wheel's, or the one on PATH."""
+    if os.environ.get("PTXAS"):
+        return os.environ["PTXAS"]
+    spec = importlib.util.find_spec("nvidia.cuda_nvcc")
+    for root in (spec.submodule_search_locations or []) if spec else []:
+        cand = Path(root) / "bin" / "ptxas"
+        if cand.is_file():
+            return str(cand)
+    found = shutil.which("ptxas")
+    if found:
+        return found
+    raise SystemExit("ptxas.py: no ptxas found: pip install nvidia-cuda-nvcc-cu12 (or set PTXAS)")
+
+
+@contextmanager
+def no_device(cc):
+    """numba-cuda asks the current device for its compute capability when it compiles a device
+    function; without a GPU, answer with `cc` (the PTX is for cc anyway)."""
+    import numba.cuda.dispatcher as disp
+
+    real = disp.get_current_device
+    disp.get_current_device = lambda: types.SimpleNamespace(compute_capability=cc)
+    try:
+        yield
+    finally:
+        disp.get_current_device = real
+
+
+def kernel_ptx(method: str, cc: tuple[int, int], **variant) -> str:
+    """PTX of the map's kernel (the map's observer, its N_OBS slots) for compute capability cc."""
+    if not hasattr(np, "row_stack"):  # numba-cuda still calls it; numpy 2.5 removed it
+        np.row_stack = np.vstack
+    import numba
+    from numba import cuda
+    from numba import types as nt
+
+    from ballsurvey.classify.observer import N_OBS
+    from ballsurvey.compose import OBSERVER
+    from ballsurvey.integrate import cuda as bc
+
+    a2, f1 = nt.float64[:, ::1], nt.float64[::1]
+    if variant.get("record", "tiles") == "tiles":
+        obs = numba.from_dtype(bc.record_dtype(N_OBS))[::1]
+    else:
+        obs = a2
+    # y0, params, dt, n_steps, cos_min, observer_on, observe_every, obs, y_end, stop_after,
+    # outcome, t_stop_out: as integrate() passes them
+    sig = (a2, a2, nt.float64, nt.int64, nt.float64, nt.boolean, nt.int64, obs, a2, nt.int64,
+           nt.int8[::1], f1)
+    with no_device(cc):
+        fn = bc.kernel_function(method, OBSERVER, cuda, **variant)
+        ptx, _ = cuda.compile_ptx(fn, sig, cc=cc)
+    return ptx
+
+
+def ptxas_figures(text: str) -> dict:
+    """The kernel's figures from `ptxas -v` output (the entry whose name holds 'kernel')."""
+    fig = {}
+    blocks = re.split(r"ptxas info\s*: Compiling entry function", text)
+    for block in blocks[1:]:
+        if "kernel" not in block.split("\n", 1)[0]:
+            continue
+        m = re.search(r"(\d+) bytes stack frame, (\d+) bytes spill stores, (\d+) bytes spill loads",
+                      block)
+        if m:
+            fig["stack"], fig["spill_st"], fig["spill_ld"] = map(int, m.groups())
+        m = re.search(r"Used (\d+) registers", block)
+        if m:
+            fig["regs"] = int(m.group(1))
+        m = re.search(r"(\d+) bytes smem", block)
+        fig["smem"] = int(m.group(1)) if m else 0
+    if "regs" not in fig:
+        raise SystemExit(f"ptxas.py: no kernel figures in ptxas' output:\n{text[-2000:]}")
+    return fig
+
+
+def warps_by_registers(regs: int) -> int:
+    """Warps an SM holds when each thread takes `regs` registers (allocated 8 at a time)."""
+    per_warp = -(-regs // 8) * 8 * 32
+    return min(MAX_WARPS_PER_SM, REGISTERS_PER_SM // per_warp)
+
+
+def measure(ptx: str, ptxas: str, arch: str, cap: int | None = None) -> dict:
+    with tempfile.TemporaryDirectory() as tmp:
+        src = Path(tmp) / "kernel.ptx"
+        src.write_text(ptx)
+        cmd = [ptxas, "-v", f"-arch={arch}", str(src), "-o", str(Path(tmp) / "kernel.cubin")]
+        if cap:
+            cmd.insert(1, f"-maxrregcount={cap}")
+        r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode:
+        raise SystemExit(f"ptxas.py: ptxas failed: {r.stderr.strip()[-2000:]}")
+    return ptxas_figures(r.stdout + r.stderr)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--method", default="rk4", help="fixed-step methods, comma-separated")
+    ap.add_argument("--arch", default="sm_90", help="NVIDIA architecture (sm_90: H100, H200)")
+    ap.add_argument("--cap", type=int, default=0,
+                    help="also the kernel in use under ptxas -maxrregcount CAP (0: not)")
+    args = ap.parse_args(argv)
+    m = re.fullmatch(r"sm_(\d+)(\d)", args.arch)
+    if not m:
+        print(f"ptxas.py: --arch must read like sm_90, not {args.arch!r}", file=sys.stderr)
+        return 2
+    cc = (int(m.group(1)), int(m.group(2)))
+    ptxas = find_ptxas()
+    about = subprocess.run([ptxas, "--version"], capture_output=True, text=True).stdout
+    release = re.search(r"release [^\n]*", about)
+    print(f"ptxas -v -arch={args.arch} ({release.group(0) if release else ptxas}); "
+          f"numba-cuda {version('numba-cuda')}")
+    head = (f"{'method':7} {'record':8} {'sums':9} {'cap':>4} {'registers':>9} {'spill st B':>10} "
+            f"{'spill ld B':>10} {'local B':>7} {'shared B':>8} {'warps/SM':>8}")
+    print(head)
+    variants = [("columns", "final"), ("columns", "streamed"), ("tiles", "final"),
+                ("tiles", "streamed")]
+    for method in args.method.split(","):
+        for record, sums in variants:
+            ptx = kernel_ptx(method, cc, record=record, sums=sums)
+            caps = [None] + ([args.cap] if args.cap and (record, sums) == variants[-1] else [])
+            for cap in caps:
+                f = measure(ptx, ptxas, args.arch, cap)
+                print(f"{method:7} {record:8} {sums:9} {cap or '-':>4} {f['regs']:9d} "
+                      f"{f['spill_st']:10d} {f['spill_ld']:10d} {f['stack']:7d} {f['smem']:8d} "
+                      f"{warps_by_registers(f['regs']):8d}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
