@@ -3,15 +3,17 @@ measured without a GPU: the kernel is compiled to PTX by numba-cuda (`numba.cuda
 and assembled by NVIDIA's `ptxas -v`, which reports what the card would run.
 
     pip install numba-cuda nvidia-cuda-nvcc-cu12 nvidia-cuda-nvrtc-cu12
-    python benchmarks/ptxas.py [--method rk4,rk38] [--arch sm_90] [--cap 128]
+    python benchmarks/ptxas.py [--method rk4,rk38] [--arch sm_90] [--cap 160,128]
 
 One row per kernel variant (`integrate.cuda.kernel_source`): the observer record as tiles (in
 use) or as plain (slot, launch) columns, and the RK update summing its stages as they come
-(streamed, in use) or at the end (final, the CPU kernel's text). Columns: registers a thread,
-spill stores and loads (bytes a thread), stack frame (local memory, bytes a thread), shared
-memory (bytes a block), and the warps an SM can hold by registers alone (65536 registers an SM,
-allocated 8 a thread at a time: an H100 SM holds at most 64 warps). --cap N adds the variant in
-use compiled with `ptxas -maxrregcount N`: what capping registers would cost in spills.
+(streamed, in use) or at the end (final, the CPU kernel's text); record "none" is the step loop
+alone (an observer that records nothing), the floor the observer adds to. Columns: registers a
+thread, spill stores and loads (bytes a thread), stack frame (local memory, bytes a thread),
+shared memory (bytes a block), and the warps an SM can hold by registers alone (65536 registers
+an SM, allocated 8 a thread at a time, in whole blocks of 128 threads; an H100 SM holds at most
+64 warps). --cap N adds the variant in use compiled with `ptxas -maxrregcount N` (a list:
+--cap 160,128): what capping registers would cost in spills.
 
 ptxas is found as $PTXAS, in the nvidia-cuda-nvcc-cu12 wheel, or on PATH.
 """
@@ -65,8 +67,18 @@ def no_device(cc):
         disp.get_current_device = real
 
 
-def kernel_ptx(method: str, cc: tuple[int, int], **variant) -> str:
-    """PTX of the map's kernel (the map's observer, its N_OBS slots) for compute capability cc."""
+def _record_nothing(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, chdd,
+                    phdd, c, A, B, psid, fric, normal):
+    pass
+
+
+def _never_done(obs, i, target):
+    return False
+
+
+def kernel_ptx(method: str, cc: tuple[int, int], bare: bool = False, **variant) -> str:
+    """PTX of the map's kernel (the map's observer, its N_OBS slots) for compute capability cc;
+    bare: with an observer that records nothing (the step loop alone)."""
     if not hasattr(np, "row_stack"):  # numba-cuda still calls it; numpy 2.5 removed it
         np.row_stack = np.vstack
     import numba
@@ -76,6 +88,7 @@ def kernel_ptx(method: str, cc: tuple[int, int], **variant) -> str:
     from ballsurvey.classify.observer import N_OBS
     from ballsurvey.compose import OBSERVER
     from ballsurvey.integrate import cuda as bc
+    from ballsurvey.integrate.binding import Observer
 
     a2, f1 = nt.float64[:, ::1], nt.float64[::1]
     if variant.get("record", "tiles") == "tiles":
@@ -86,8 +99,11 @@ def kernel_ptx(method: str, cc: tuple[int, int], **variant) -> str:
     # outcome, t_stop_out: as integrate() passes them
     sig = (a2, a2, nt.float64, nt.int64, nt.float64, nt.boolean, nt.int64, obs, a2, nt.int64,
            nt.int8[::1], f1)
+    observer = OBSERVER
+    if bare:
+        observer = Observer(record=numba.njit(_record_nothing), done=numba.njit(_never_done))
     with no_device(cc):
-        fn = bc.kernel_function(method, OBSERVER, cuda, **variant)
+        fn = bc.kernel_function(method, observer, cuda, **variant)
         ptx, _ = cuda.compile_ptx(fn, sig, cc=cc)
     return ptx
 
@@ -113,10 +129,12 @@ def ptxas_figures(text: str) -> dict:
     return fig
 
 
-def warps_by_registers(regs: int) -> int:
-    """Warps an SM holds when each thread takes `regs` registers (allocated 8 at a time)."""
+def warps_by_registers(regs: int, block_warps: int = 4) -> int:
+    """Warps an SM holds when each thread takes `regs` registers (allocated 8 at a time), in
+    whole blocks of `block_warps` warps (the kernel's THREADS_PER_BLOCK = 128: 4)."""
     per_warp = -(-regs // 8) * 8 * 32
-    return min(MAX_WARPS_PER_SM, REGISTERS_PER_SM // per_warp)
+    warps = min(MAX_WARPS_PER_SM, REGISTERS_PER_SM // per_warp)
+    return warps - warps % block_warps
 
 
 def measure(ptx: str, ptxas: str, arch: str, cap: int | None = None) -> dict:
@@ -132,12 +150,18 @@ def measure(ptx: str, ptxas: str, arch: str, cap: int | None = None) -> dict:
     return ptxas_figures(r.stdout + r.stderr)
 
 
+def row(method, record, sums, cap, f):
+    print(f"{method:7} {record:8} {sums:9} {cap or '-':>4} {f['regs']:9d} {f['spill_st']:10d} "
+          f"{f['spill_ld']:10d} {f['stack']:7d} {f['smem']:8d} {warps_by_registers(f['regs']):8d}")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--method", default="rk4", help="fixed-step methods, comma-separated")
     ap.add_argument("--arch", default="sm_90", help="NVIDIA architecture (sm_90: H100, H200)")
-    ap.add_argument("--cap", type=int, default=0,
-                    help="also the kernel in use under ptxas -maxrregcount CAP (0: not)")
+    ap.add_argument("--cap", default="",
+                    help="register caps, comma-separated: the kernel in use also under ptxas "
+                         "-maxrregcount CAP (what a cap costs in spills)")
     args = ap.parse_args(argv)
     m = re.fullmatch(r"sm_(\d+)(\d)", args.arch)
     if not m:
@@ -152,17 +176,17 @@ def main(argv=None) -> int:
     head = (f"{'method':7} {'record':8} {'sums':9} {'cap':>4} {'registers':>9} {'spill st B':>10} "
             f"{'spill ld B':>10} {'local B':>7} {'shared B':>8} {'warps/SM':>8}")
     print(head)
+    caps = [int(c) for c in args.cap.split(",") if c.strip()]
     variants = [("columns", "final"), ("columns", "streamed"), ("tiles", "final"),
                 ("tiles", "streamed")]
     for method in args.method.split(","):
         for record, sums in variants:
             ptx = kernel_ptx(method, cc, record=record, sums=sums)
-            caps = [None] + ([args.cap] if args.cap and (record, sums) == variants[-1] else [])
-            for cap in caps:
-                f = measure(ptx, ptxas, args.arch, cap)
-                print(f"{method:7} {record:8} {sums:9} {cap or '-':>4} {f['regs']:9d} "
-                      f"{f['spill_st']:10d} {f['spill_ld']:10d} {f['stack']:7d} {f['smem']:8d} "
-                      f"{warps_by_registers(f['regs']):8d}")
+            for cap in [None] + (caps if (record, sums) == variants[-1] else []):
+                row(method, record, sums, cap, measure(ptx, ptxas, args.arch, cap))
+        # the step loop alone: an observer that records nothing (its code is left out)
+        row(method, "none", "streamed", None,
+            measure(kernel_ptx(method, cc, bare=True), ptxas, args.arch))
     return 0
 
 
