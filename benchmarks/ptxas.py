@@ -150,8 +150,9 @@ def measure(ptx: str, ptxas: str, arch: str, cap: int | None = None) -> dict:
     return ptxas_figures(r.stdout + r.stderr)
 
 
-def row(method, record, sums, cap, f):
-    print(f"{method:7} {record:8} {sums:9} {cap or '-':>4} {f['regs']:9d} {f['spill_st']:10d} "
+def row(method, record, sums, carry, cap, f):
+    print(f"{method:7} {record:8} {sums:9} {carry:9} {cap or '-':>4} {f['regs']:9d} "
+          f"{f['spill_st']:10d} "
           f"{f['spill_ld']:10d} {f['stack']:7d} {f['smem']:8d} {warps_by_registers(f['regs']):8d}")
 
 
@@ -173,19 +174,21 @@ def main(argv=None) -> int:
     release = re.search(r"release [^\n]*", about)
     print(f"ptxas -v -arch={args.arch} ({release.group(0) if release else ptxas}); "
           f"numba-cuda {version('numba-cuda')}")
-    head = (f"{'method':7} {'record':8} {'sums':9} {'cap':>4} {'registers':>9} {'spill st B':>10} "
-            f"{'spill ld B':>10} {'local B':>7} {'shared B':>8} {'warps/SM':>8}")
+    head = (f"{'method':7} {'record':8} {'sums':9} {'carry':9} {'cap':>4} {'registers':>9} "
+            f"{'spill st B':>10} {'spill ld B':>10} {'local B':>7} {'shared B':>8} "
+            f"{'warps/SM':>8}")
     print(head)
     caps = [int(c) for c in args.cap.split(",") if c.strip()]
-    variants = [("columns", "final"), ("columns", "streamed"), ("tiles", "final"),
-                ("tiles", "streamed")]
+    variants = [("columns", "final", "registers"), ("columns", "streamed", "registers"),
+                ("tiles", "final", "registers"), ("tiles", "streamed", "registers"),
+                ("tiles", "streamed", "shared")]
     for method in args.method.split(","):
-        for record, sums in variants:
-            ptx = kernel_ptx(method, cc, record=record, sums=sums)
-            for cap in [None] + (caps if (record, sums) == variants[-1] else []):
-                row(method, record, sums, cap, measure(ptx, ptxas, args.arch, cap))
+        for record, sums, carry in variants:
+            ptx = kernel_ptx(method, cc, record=record, sums=sums, carry=carry)
+            for cap in [None] + (caps if (record, sums, carry) == variants[-1] else []):
+                row(method, record, sums, carry, cap, measure(ptx, ptxas, args.arch, cap))
         # the step loop alone: an observer that records nothing (its code is left out)
-        row(method, "none", "streamed", None,
+        row(method, "none", "streamed", "shared", None,
             measure(kernel_ptx(method, cc, bare=True), ptxas, args.arch))
     return 0
 

@@ -176,13 +176,18 @@ def test_run_override_rewrites_the_spec_text(tmp_path):
 
 
 def test_streamed_sums_are_the_cpu_kernels_arithmetic():
-    """The CUDA step sums each group of equal weights as soon as its last stage exists: run both
-    texts in plain Python (IEEE doubles, no fused multiply-add) on a nonlinear right-hand side:
-    the same numbers bit for bit, for every fixed-step tableau."""
+    """The CUDA step sums each group of equal weights as soon as its last stage exists, and keeps
+    the values it carries across right-hand side calls in shared memory: run the CPU kernel's text
+    and both CUDA texts in plain Python (IEEE doubles, no fused multiply-add; shared memory as an
+    array, the fence a no-op) on a nonlinear right-hand side: the same numbers bit for bit, for
+    every fixed-step tableau."""
     import math
     import random
+    import types
 
-    from ballsurvey.integrate.cuda import streamed_stage_source
+    import numpy as np
+
+    from ballsurvey.integrate.cuda import carried, streamed_stage_source
     from ballsurvey.integrate.tableaus import FIXED_STEP, stage_source, step_constants
 
     n = 12
@@ -191,17 +196,22 @@ def test_streamed_sums_are_the_cpu_kernels_arithmetic():
         return tuple(math.sin(1.3 * s[q] + c) * s[(q + 1) % n] + A * s[(q + 5) % n] ** 2 - B
                      for q in range(n))
 
+    cuda = types.SimpleNamespace(threadfence_block=lambda: None)
     rng = random.Random(7)
     for name, tab in FIXED_STEP.items():
         s0 = tuple(rng.uniform(-2.0, 2.0) for _ in range(n))
+        texts = [stage_source(tab, n, ""), streamed_stage_source(tab, n, ""),
+                 streamed_stage_source(tab, n, "", carry="shared")]
         stepped = []
-        for make in (stage_source, streamed_stage_source):
-            stages, update = make(tab, n, "")
-            ns = {"fast_rhs": fast_rhs, "c": 0.3, "A": 0.7, "B": 0.4, "dt": 0.0137, "s0": s0}
+        for stages, update in texts:
+            ns = {"fast_rhs": fast_rhs, "c": 0.3, "A": 0.7, "B": 0.4, "dt": 0.0137, "s0": s0,
+                  "cuda": cuda, "tid": 0}
+            ns.update({f"st_{v}": np.full((n, 1), np.nan) for v in carried(tab, n)})
             exec(step_constants(tab, "") + "\n" + stages + "\n" + update, ns)
-            stepped.append([ns[f"r{q}"] for q in range(n)])
-        assert stepped[0] == stepped[1], name  # exact
-        assert "g0 = (" in streamed_stage_source(tab, n, "")[0], name  # a sum was streamed
+            stepped.append([float(ns[f"r{q}"]) for q in range(n)])
+        assert stepped[0] == stepped[1] == stepped[2], name  # exact
+        assert "g0 = (" in texts[1][0], name  # a sum was streamed
+        assert "s0" in carried(tab, n) and "st_s0[" in texts[2][1], name  # and s0 carried
 
 
 TILE_SCRIPT = textwrap.dedent('''
@@ -270,12 +280,19 @@ def test_ptxas_figures_of_the_kernel_in_use():
         import numba.cuda  # noqa: F401
     except ImportError:
         pytest.skip("numba has no CUDA target here")
-    script = os.path.join(os.path.dirname(__file__), "..", "benchmarks", "ptxas.py")
-    r = subprocess.run([sys.executable, script, "--method", "rk4"], capture_output=True,
-                       text=True, timeout=600)
+    bench = os.path.join(os.path.dirname(__file__), "..", "benchmarks", "ptxas.py")
+    script = textwrap.dedent(f'''
+        import runpy
+        m = runpy.run_path({bench!r})
+        ptxas = m["find_ptxas"]()
+        for variant in ({{}}, dict(record="columns", sums="final", carry="registers")):
+            f = m["measure"](m["kernel_ptx"]("rk4", (9, 0), **variant), ptxas, "sm_90")
+            print(f["regs"], f["spill_st"], f["spill_ld"])
+    ''')
+    r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                       timeout=600)
     assert r.returncode == 0, r.stderr[-3000:]
-    rows = {tuple(line.split()[1:3]): [int(v) for v in line.split()[4:7]]
-            for line in r.stdout.splitlines() if line.startswith("rk4 ")}
-    regs, spill_st, spill_ld = rows[("tiles", "streamed")]
+    (regs, spill_st, spill_ld), (regs_columns, _, _) = (
+        [int(x) for x in line.split()] for line in r.stdout.strip().splitlines())
     assert spill_st == spill_ld == 0, r.stdout
-    assert regs < rows[("columns", "final")][0], r.stdout
+    assert regs < regs_columns, r.stdout

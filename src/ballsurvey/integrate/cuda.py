@@ -16,9 +16,11 @@ the compiler knows every slot's offset from the tile's start: one base address a
 of one 64-bit address a slot, which the compiler hoisted out of the step loop into registers (and
 spilt). The kernel is compiled again for another number of slots, so an observer that gains slots
 needs no change here. The RK stages are written out from the tableau with each group of equal
-weights summed as soon as its last stage exists (`streamed_stage_source`: the same operations in
-the same order as the CPU kernel, with fewer stages alive at once). `benchmarks/ptxas.py` reports
-registers and spills for sm_90 without a GPU (`compile_ptx`).
+weights summed as soon as its last stage exists, and the values a step carries across two or
+more right-hand side calls (its start state; RK4's k0) kept in the block's shared memory
+(`streamed_stage_source`): the same operations in the same order as the CPU kernel, with fewer
+values in registers at once. `benchmarks/ptxas.py` reports registers and spills for sm_90
+without a GPU.
 
 Launches are streamed through the card in batches (`batch` launches at a time, by default sized to
 a quarter of its free memory), so a map larger than the card works; only the observer slots and
@@ -26,9 +28,8 @@ the end states come back.
 
 Results agree with the CPU backend to rounding (the operations are the same, but the GPU compiler
 may contract a * b + c into one fused multiply-add), not bit for bit; in the simulator, bit for
-bit. A lane that turns non-finite
-or reaches the Euler chart's singularity stops there (the CPU kernel keeps stepping its frozen
-lane inside the SIMD block); its observer record is the same.
+bit. A lane that turns non-finite or reaches the Euler chart's singularity stops there (the CPU
+kernel keeps stepping its frozen lane inside the SIMD block); its observer record is the same.
 
 Without a GPU the same code runs in numba's CUDA simulator (`NUMBA_ENABLE_CUDASIM=1`, set before
 numba.cuda is imported): that is how the tests check it.
@@ -57,6 +58,9 @@ TILE_FIELD = "slots"
 RECORD_LAYOUTS = ("tiles", "columns")
 #: how the RK update sums its stages: "streamed" (in use) or "final" (the CPU kernel's text)
 STAGE_SUMS = ("streamed", "final")
+#: where a step keeps the values it carries across right-hand side calls: the block's "shared"
+#: memory (in use) or "registers" (the compiler's choice)
+CARRY = ("shared", "registers")
 
 
 class BackendError(RuntimeError):
@@ -105,6 +109,7 @@ def kernel(y0, params, dt, n_steps, cos_min, observer_on, observe_every, obs, y_
     if i >= y0.shape[1]:
         return
 {record_view}
+{carried}
 {load}
     c = params[0, i]
     A = params[1, i]
@@ -148,48 +153,114 @@ _RECORD_VIEW = {
 }
 
 
-def streamed_stage_source(tab: Tableau, n_vars: int, indent: str) -> tuple[str, str]:
+def streamed_stage_source(tab: Tableau, n_vars: int, indent: str,
+                          carry: str = "registers") -> tuple[str, str]:
     """`tableaus.stage_source`'s step with the update's sums formed early: each group of equal
     weights (RK4's k0 + k3 and k1 + k2) is summed as soon as its last stage exists, left to right
     as the CPU kernel's text sums it, so the stages it holds need not stay alive to the end of the
-    step. The same floating-point operations in the same order: the same numbers, bit for bit."""
+    step. The same floating-point operations in the same order: the same numbers, bit for bit.
+
+    carry "shared": every value read two or more right-hand side calls after it was made (the
+    step's start state s0; RK4's k0, kept for k0 + k3) is stored in the block's shared memory
+    (array `st_<name>`, column `tid`) and read back from there, with a block memory fence after
+    each call, so that the compiler can neither forward a stored value nor reuse a loaded one
+    across a call: it cannot keep them in registers instead. The kernel declares the arrays
+    (`carried`). "registers": the compiler decides where they live."""
     v = range(n_vars)
-    full, _ = stage_source(tab, n_vars, indent)
-    lines = full.splitlines()  # k0 = ..., then s1 = ..., k1 = ..., s2 = ..., ...
     groups = _grouped(enumerate(tab.b))
-    out = [lines[0]]
-    for s in range(tab.stages):
-        if s > 0:
-            out += lines[2 * s - 1:2 * s + 1]
-        for g, (_, js) in enumerate(groups):
-            if s in js[1:]:  # this stage extends group g's running sum
-                prev = f"k{js[0]}" if s == js[1] else f"g{g}"
-                out.append(f"{indent}g{g} = (" + ", ".join(f"{prev}[{q}] + k{s}[{q}]" for q in v)
-                           + ")")
-    names = [f"dtb{g}" for g in range(len(groups))]
-    sums = [(h, f"g{g}" if len(js) > 1 else f"k{js[0]}") for g, (h, (_, js)) in
-            enumerate(zip(names, groups))]
-    update = "\n".join(
-        f"{indent}r{q} = s0[{q}] + (" + " + ".join(f"{h} * {ref}[{q}]" for h, ref in sums) + ")"
-        for q in v)
-    return "\n".join(out), update
+
+    def emit(staged):
+        out, events, seg, born = [], [], 0, {"s0": 0}
+
+        def ref(name, q):
+            events.append((name, born[name], seg))
+            if name in staged and born[name] < seg:
+                return f"st_{name}[{q}, tid]"
+            return f"{name}[{q}]"
+
+        def define(name, text):
+            born[name] = seg
+            out.append(f"{indent}{name} = {text}")
+            if name in staged:
+                out.extend(f"{indent}st_{name}[{q}, tid] = {name}[{q}]" for q in v)
+
+        if "s0" in staged:
+            out.extend(f"{indent}st_s0[{q}, tid] = s0[{q}]" for q in v)
+        for s in range(tab.stages):
+            if s > 0:
+                terms = []
+                for g, (_, js) in enumerate(_grouped(enumerate(tab.a[s, :s]))):
+                    h = f"dta{s}_{g}"
+                    terms.append([(h, js)])
+                comps = []
+                for q in v:
+                    parts = []
+                    for ((h, js),) in terms:
+                        ks = " + ".join(ref(f"k{j}", q) for j in js)
+                        parts.append(f"{h} * ({ks})" if len(js) > 1 else f"{h} * {ks}")
+                    comps.append(f"{ref('s0', q)} + ({' + '.join(parts)})")
+                define(f"s{s}", "(" + ", ".join(comps) + ")")
+            out.append(f"{indent}k{s} = fast_rhs(s{s}, c, A, B)")
+            seg += 1
+            born[f"k{s}"] = seg
+            if carry == "shared":
+                out.append(f"{indent}cuda.threadfence_block()")
+            if f"k{s}" in staged:
+                out.extend(f"{indent}st_k{s}[{q}, tid] = k{s}[{q}]" for q in v)
+            for g, (_, js) in enumerate(groups):
+                if s in js[1:]:  # this stage extends group g's running sum
+                    prev = f"k{js[0]}" if s == js[1] else f"g{g}"
+                    define(f"g{g}", "(" + ", ".join(f"{ref(prev, q)} + {ref(f'k{s}', q)}"
+                                                    for q in v) + ")")
+        names = [f"dtb{g}" for g in range(len(groups))]
+        sums = [(h, f"g{g}" if len(js) > 1 else f"k{js[0]}") for g, (h, (_, js)) in
+                enumerate(zip(names, groups))]
+        update = [f"{indent}r{q} = {ref('s0', q)} + ("
+                  + " + ".join(f"{h} * {ref(name, q)}" for h, name in sums) + ")" for q in v]
+        return out, update, events
+
+    staged: set = set()
+    if carry == "shared":
+        _, _, events = emit(staged)
+        staged = {name for name, born, seg in events if seg - born >= 2}
+    out, update, _ = emit(staged)
+    return "\n".join(out), "\n".join(update)
 
 
-def kernel_source(tab: Tableau, *, record: str = "tiles", sums: str = "streamed") -> str:
+def carried(tab: Tableau, n_vars: int) -> list[str]:
+    """Names of the values `streamed_stage_source(..., carry="shared")` keeps in shared memory."""
+    stages, update = streamed_stage_source(tab, n_vars, "", carry="shared")
+    text = stages + "\n" + update
+    return sorted({line.split("[", 1)[0][3:] for line in text.splitlines()
+                   if line.startswith("st_")})
+
+
+def kernel_source(tab: Tableau, *, record: str = "tiles", sums: str = "streamed",
+                  carry: str = "shared") -> str:
     """The CUDA kernel's Python source for a tableau (the stages written out, as on the CPU).
 
     record: the observer record's layout (RECORD_LAYOUTS); sums: how the update sums its stages
-    (STAGE_SUMS). The defaults are the kernel `integrate` runs; the others are there to be
-    measured against it (benchmarks/ptxas.py)."""
-    if record not in RECORD_LAYOUTS or sums not in STAGE_SUMS:
-        raise ValueError(f"record must be one of {RECORD_LAYOUTS}, sums one of {STAGE_SUMS}")
+    (STAGE_SUMS); carry: where the values a step carries across right-hand side calls live
+    (CARRY; "shared" needs sums "streamed"). The defaults are the kernel `integrate` runs; the
+    others are there to be measured against it (benchmarks/ptxas.py)."""
+    if record not in RECORD_LAYOUTS or sums not in STAGE_SUMS or carry not in CARRY:
+        raise ValueError(f"record must be one of {RECORD_LAYOUTS}, sums one of {STAGE_SUMS}, "
+                         f"carry one of {CARRY}")
+    if carry == "shared" and sums != "streamed":
+        raise ValueError("carry 'shared' is written for sums 'streamed'")
     v = range(N_FAST)
-    make = streamed_stage_source if sums == "streamed" else stage_source
-    stages, update = make(tab, N_FAST, " " * 8)
+    if sums == "streamed":
+        stages, update = streamed_stage_source(tab, N_FAST, " " * 8, carry=carry)
+    else:
+        stages, update = stage_source(tab, N_FAST, " " * 8)
     view, rec = _RECORD_VIEW[record]
+    shared = carried(tab, N_FAST) if carry == "shared" else []
+    decl = "".join(f"    st_{name} = cuda.shared.array(({N_FAST}, {THREADS_PER_BLOCK}), float64)\n"
+                   for name in shared)
     return _TEMPLATE.format(
         record_view=view,
         rec=rec,
+        carried=decl + "    tid = cuda.threadIdx.x" if shared else "",
         load="\n".join(f"    r{q} = y0[{q}, i]" for q in v),
         tuple_r=", ".join(f"r{q}" for q in v),
         stages=stages,
@@ -205,9 +276,11 @@ def kernel_function(method: str, observer: Observer, cuda, **variant):
     `kernel_source`'s record and sums."""
     if method not in FIXED_STEP:
         raise ValueError(f"unknown method {method!r}; known: {', '.join(FIXED_STEP)}")
+    from numba import float64
+
     memo: dict = {}
     ns = {
-        "cuda": cuda, "math": math,
+        "cuda": cuda, "math": math, "float64": float64,
         "accelerations": device_twin(accelerations, cuda, memo),
         "fast_rhs": device_twin(fast_rhs, cuda, memo),
         "record": device_twin(observer.record, cuda, memo),
