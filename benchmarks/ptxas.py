@@ -4,6 +4,7 @@ and assembled by NVIDIA's `ptxas -v`, which reports what the card would run.
 
     pip install numba-cuda nvidia-cuda-nvcc-cu12 nvidia-cuda-nvrtc-cu12
     python benchmarks/ptxas.py [--method rk4,rk38] [--arch sm_90] [--cap 160,128]
+    python benchmarks/ptxas.py --time 4194304 [--steps 2000]    # on a GPU: the variants timed
 
 One row per kernel variant (`integrate.cuda.kernel_source`): the observer record as tiles (in
 use) or as plain (slot, launch) columns, and the RK update summing its stages as they come
@@ -16,6 +17,12 @@ an SM, allocated 8 a thread at a time, in whole blocks of 128 threads; an H100 S
 --cap 160,128): what capping registers would cost in spills.
 
 ptxas is found as $PTXAS, in the nvidia-cuda-nvcc-cu12 wheel, or on PATH.
+
+--time N (needs a GPU, or numba's simulator at tiny N): each variant run on the card back to back
+in one process, `integrate.cuda.integrate` with the map's observer (every 4 steps) on N launches
+of `bench --backend cuda` x --steps RK steps, best of 3, transfers included: IC-steps/s, and the
+largest difference of its observer record from the kernel in use's (the same science: 0 up to
+the compiler's fused multiply-adds).
 """
 from __future__ import annotations
 
@@ -156,6 +163,52 @@ def row(method, record, sums, carry, cap, f):
           f"{f['spill_ld']:10d} {f['stack']:7d} {f['smem']:8d} {warps_by_registers(f['regs']):8d}")
 
 
+VARIANTS = [("columns", "final", "registers"), ("columns", "streamed", "registers"),
+            ("tiles", "final", "registers"), ("tiles", "streamed", "registers"),
+            ("tiles", "streamed", "shared")]
+
+
+def time_variants(methods, n_launches: int, n_steps: int) -> None:
+    """IC-steps/s of each variant on the card (see the module docstring)."""
+    import time
+
+    from ballsurvey.bench import _best, _kernel_launches
+    from ballsurvey.classify.observer import N_OBS
+    from ballsurvey.compose import OBSERVER
+    from ballsurvey.integrate import cuda as bc
+
+    cuda = bc.cuda_module()
+    try:
+        name = cuda.get_current_device().name
+        name = name.decode() if isinstance(name, bytes) else name
+    except AttributeError:  # numba's simulator
+        name = "numba's CUDA simulator"
+    ball, y0, params, _, _, _ = _kernel_launches(n_launches, 0)
+    dt = 1e-4 / ball.time_unit
+    print(f"{name}: {n_launches} launches x {n_steps} steps, observer every 4, best of 3")
+    print(f"{'method':7} {'record':8} {'sums':9} {'carry':9} {'IC-steps/s':>11} "
+          f"{'compile s':>9} {'max |obs - in use|':>18}")
+    for method in methods:
+        runs = {}
+        for record, sums, carry in reversed(VARIANTS):  # the kernel in use first
+            v = dict(record=record, sums=sums, carry=carry)
+            kw = dict(observer=OBSERVER, n_slots=N_OBS, observe_every=4, variant=v)
+            t0 = time.perf_counter()
+            bc.integrate(y0[:, :4], params[:, :4], dt, 2, method, **kw)  # compile
+            compile_s = time.perf_counter() - t0
+            res = {}
+
+            def run(kw=kw, res=res, method=method):
+                res["r"] = bc.integrate(y0, params, dt, n_steps, method, **kw)
+
+            best = _best(run, 3)
+            runs[(record, sums, carry)] = res["r"].obs
+            ref = runs[VARIANTS[-1]]
+            diff = np.nanmax(np.abs(res["r"].obs - ref)) if np.isfinite(ref).any() else 0.0
+            print(f"{method:7} {record:8} {sums:9} {carry:9} {n_launches * n_steps / best:11.3e} "
+                  f"{compile_s:9.1f} {diff:18.1e}")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--method", default="rk4", help="fixed-step methods, comma-separated")
@@ -163,7 +216,13 @@ def main(argv=None) -> int:
     ap.add_argument("--cap", default="",
                     help="register caps, comma-separated: the kernel in use also under ptxas "
                          "-maxrregcount CAP (what a cap costs in spills)")
+    ap.add_argument("--time", type=int, default=0, metavar="N",
+                    help="on a GPU: time each variant on N launches instead (0: not)")
+    ap.add_argument("--steps", type=int, default=2000, help="RK steps a launch for --time")
     args = ap.parse_args(argv)
+    if args.time:
+        time_variants(args.method.split(","), args.time, args.steps)
+        return 0
     m = re.fullmatch(r"sm_(\d+)(\d)", args.arch)
     if not m:
         print(f"ptxas.py: --arch must read like sm_90, not {args.arch!r}", file=sys.stderr)
@@ -179,9 +238,7 @@ def main(argv=None) -> int:
             f"{'warps/SM':>8}")
     print(head)
     caps = [int(c) for c in args.cap.split(",") if c.strip()]
-    variants = [("columns", "final", "registers"), ("columns", "streamed", "registers"),
-                ("tiles", "final", "registers"), ("tiles", "streamed", "registers"),
-                ("tiles", "streamed", "shared")]
+    variants = VARIANTS
     for method in args.method.split(","):
         for record, sums, carry in variants:
             ptx = kernel_ptx(method, cc, record=record, sums=sums, carry=carry)

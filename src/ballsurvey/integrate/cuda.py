@@ -312,12 +312,13 @@ def from_tiles(tiles: np.ndarray, m: int) -> np.ndarray:
 
 
 @cache
-def make_kernel(method: str, observer: Observer):
-    """The compiled CUDA kernel for a fixed-step method named in FIXED_STEP, with `observer`."""
+def make_kernel(method: str, observer: Observer, **variant):
+    """The compiled CUDA kernel for a fixed-step method named in FIXED_STEP, with `observer`;
+    variant: `kernel_source`'s record, sums and carry (default: the kernel in use)."""
     if method not in FIXED_STEP:
         raise ValueError(f"unknown method {method!r}; known: {', '.join(FIXED_STEP)}")
     cuda = cuda_module()
-    return cuda.jit(kernel_function(method, observer, cuda))
+    return cuda.jit(kernel_function(method, observer, cuda, **variant))
 
 
 def threads_per_block() -> int:
@@ -344,18 +345,23 @@ def default_batch(cuda, n_slots: int) -> int:
 
 
 def integrate(y0, params, dt, n_steps, method="rk4", *, observer: Observer, n_slots: int,
-              cos_min=1e-3, observe_every=1, stop_after=0, batch: int | None = None) -> Result:
+              cos_min=1e-3, observe_every=1, stop_after=0, batch: int | None = None,
+              variant: dict | None = None) -> Result:
     """The CPU `ensemble.integrate` on the GPU, without a trajectory: a `Result`.
 
     y0: (N_FAST, n) fast states; params: (3, n) non-dimensional (c, A, B); dt, n_steps:
     non-dimensional step and count; the observer (n_slots slots per launch) sees every
-    `observe_every`-th step and the last. Launches go through the card `batch` at a time."""
+    `observe_every`-th step and the last. Launches go through the card `batch` at a time.
+    variant: `kernel_source`'s record, sums and carry, to time the kernel's variants against the
+    one in use (benchmarks/ptxas.py --time); the results are the same."""
     y0 = np.ascontiguousarray(y0, dtype=np.float64)
     params = np.ascontiguousarray(params, dtype=np.float64)
     n = y0.shape[1]
     if y0.shape[0] != N_FAST or params.shape != (3, n):
         raise ValueError(f"need y0 ({N_FAST}, n) and params (3, n); got {y0.shape}, {params.shape}")
-    kern = make_kernel(method, observer)
+    variant = dict(variant or {})
+    kern = make_kernel(method, observer, **variant)
+    tiled = variant.get("record", "tiles") == "tiles"
     cuda = cuda_module()
     slots = max(int(n_slots), 1)
     batch = int(batch or default_batch(cuda, slots))
@@ -367,7 +373,7 @@ def integrate(y0, params, dt, n_steps, method="rk4", *, observer: Observer, n_sl
     for lo in range(0, n, batch):
         hi = min(n, lo + batch)
         m = hi - lo
-        d_obs = cuda.to_device(nan_tiles(slots, m))
+        d_obs = cuda.to_device(nan_tiles(slots, m) if tiled else np.full((slots, m), np.nan))
         d_end = cuda.device_array((N_FAST, m))
         d_out = cuda.device_array(m, dtype=np.int8)
         d_stop = cuda.device_array(m)
@@ -377,7 +383,7 @@ def integrate(y0, params, dt, n_steps, method="rk4", *, observer: Observer, n_sl
             cuda.to_device(np.ascontiguousarray(params[:, lo:hi])), float(dt), int(n_steps),
             float(cos_min), n_slots > 0, max(1, int(observe_every)), d_obs, d_end,
             int(stop_after), d_out, d_stop)
-        obs[:, lo:hi] = from_tiles(d_obs.copy_to_host(), m)
+        obs[:, lo:hi] = from_tiles(d_obs.copy_to_host(), m) if tiled else d_obs.copy_to_host()
         y_end[:, lo:hi] = d_end.copy_to_host()
         outcome[lo:hi] = d_out.copy_to_host()
         t_stop[lo:hi] = d_stop.copy_to_host()
