@@ -48,6 +48,7 @@ from .binding import Observer
 from .outcome import CHART_SINGULAR, EULER_ANGLES, NONFINITE, Result
 from .tableaus import FIXED_STEP, Tableau, _grouped, stage_source, step_constants
 
+#: threads a block on a GPU (the shared-memory arrays of the step are sized for it)
 THREADS_PER_BLOCK = 128
 #: launches a tile of the observer record holds (a warp: one tile's slot k is one 256-byte line)
 TILE = 32
@@ -166,6 +167,11 @@ def streamed_stage_source(tab: Tableau, n_vars: int, indent: str,
     each call, so that the compiler can neither forward a stored value nor reuse a loaded one
     across a call: it cannot keep them in registers instead. The kernel declares the arrays
     (`carried`). "registers": the compiler decides where they live."""
+    return _streamed(tab, n_vars, indent, carry)[:2]
+
+
+def _streamed(tab: Tableau, n_vars: int, indent: str, carry: str):
+    """streamed_stage_source's (stages, update) and the set of names carried in shared memory."""
     v = range(n_vars)
     groups = _grouped(enumerate(tab.b))
 
@@ -188,14 +194,12 @@ def streamed_stage_source(tab: Tableau, n_vars: int, indent: str,
             out.extend(f"{indent}st_s0[{q}, tid] = s0[{q}]" for q in v)
         for s in range(tab.stages):
             if s > 0:
-                terms = []
-                for g, (_, js) in enumerate(_grouped(enumerate(tab.a[s, :s]))):
-                    h = f"dta{s}_{g}"
-                    terms.append([(h, js)])
+                terms = [(f"dta{s}_{g}", js)
+                         for g, (_, js) in enumerate(_grouped(enumerate(tab.a[s, :s])))]
                 comps = []
                 for q in v:
                     parts = []
-                    for ((h, js),) in terms:
+                    for h, js in terms:
                         ks = " + ".join(ref(f"k{j}", q) for j in js)
                         parts.append(f"{h} * ({ks})" if len(js) > 1 else f"{h} * {ks}")
                     comps.append(f"{ref('s0', q)} + ({' + '.join(parts)})")
@@ -224,15 +228,13 @@ def streamed_stage_source(tab: Tableau, n_vars: int, indent: str,
         _, _, events = emit(staged)
         staged = {name for name, born, seg in events if seg - born >= 2}
     out, update, _ = emit(staged)
-    return "\n".join(out), "\n".join(update)
+    return "\n".join(out), "\n".join(update), staged
 
 
 def carried(tab: Tableau, n_vars: int) -> list[str]:
-    """Names of the values `streamed_stage_source(..., carry="shared")` keeps in shared memory."""
-    stages, update = streamed_stage_source(tab, n_vars, "", carry="shared")
-    text = stages + "\n" + update
-    return sorted({line.split("[", 1)[0][3:] for line in text.splitlines()
-                   if line.startswith("st_")})
+    """Names of the values `streamed_stage_source(..., carry="shared")` keeps in shared memory
+    (the kernel declares an array `st_<name>` for each)."""
+    return sorted(_streamed(tab, n_vars, "", "shared")[2])
 
 
 def kernel_source(tab: Tableau, *, record: str = "tiles", sums: str = "streamed",
@@ -273,7 +275,7 @@ def kernel_source(tab: Tableau, *, record: str = "tiles", sums: str = "streamed"
 def kernel_function(method: str, observer: Observer, cuda, **variant):
     """The kernel as a Python function whose globals are the device twins of the right-hand side
     and of the observer (for `cuda.jit`, or `cuda.compile_ptx` without a GPU). variant:
-    `kernel_source`'s record and sums."""
+    `kernel_source`'s record, sums and carry."""
     if method not in FIXED_STEP:
         raise ValueError(f"unknown method {method!r}; known: {', '.join(FIXED_STEP)}")
     from numba import float64
