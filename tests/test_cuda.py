@@ -29,13 +29,17 @@ SCRIPT = textwrap.dedent('''
         kw = dict(observer=OBSERVER, n_slots=N_OBS, observe_every=4, stop_after=stop)
         g = bc.integrate(y0, p, dt, 600, method, batch=3, **kw)
         c = ensemble.integrate(y0, p, dt, 600, method, block=2, **kw)
-        assert np.array_equal(np.isnan(g.obs), np.isnan(c.obs)), method
-        # the same arithmetic in the simulator: equal to rounding (a GPU may fuse multiply-adds)
-        assert np.allclose(g.obs, c.obs, rtol=1e-12, atol=1e-14, equal_nan=True), method
-        assert np.array_equal(g.outcome, c.outcome), method
-        assert np.allclose(g.t_stop, c.t_stop, equal_nan=True), method
-        ok = c.outcome == outcome.OK
-        assert np.allclose(g.y_end[:, ok], c.y_end[:, ok], rtol=1e-12, atol=1e-14), method
+        for j in range(th.size):  # launch by launch
+            assert np.array_equal(np.isnan(g.obs[:, j]), np.isnan(c.obs[:, j])), (method, j)
+            # the same arithmetic in the simulator: equal to rounding (a GPU may fuse
+            # multiply-adds; another platform's libm may round a sine differently)
+            assert np.allclose(g.obs[:, j], c.obs[:, j], rtol=1e-12, atol=1e-14,
+                               equal_nan=True), (method, j)
+            assert g.outcome[j] == c.outcome[j], (method, j)
+            assert np.allclose(g.t_stop[j], c.t_stop[j], equal_nan=True), (method, j)
+            if c.outcome[j] == outcome.OK:
+                assert np.allclose(g.y_end[:, j], c.y_end[:, j], rtol=1e-12, atol=1e-14), (
+                    method, j)
     assert g.outcome[4] == outcome.CHART_SINGULAR  # the near-vertical launch was stopped
     print("ok")
 ''')
