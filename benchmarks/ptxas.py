@@ -115,6 +115,19 @@ def kernel_ptx(method: str, cc: tuple[int, int], bare: bool = False, **variant) 
     return ptx
 
 
+def checked_ptx(method: str, cc: tuple[int, int], **kw) -> str:
+    """`kernel_ptx`, with one line instead of a traceback when numba-cuda or NVRTC is missing."""
+    try:
+        return kernel_ptx(method, cc, **kw)
+    except ImportError as exc:
+        raise SystemExit(f"ptxas.py: {exc}: pip install numba-cuda") from None
+    except Exception as exc:
+        if "nvrtc" in str(exc).lower():
+            raise SystemExit("ptxas.py: numba-cuda needs NVRTC to compile: "
+                             "pip install nvidia-cuda-nvrtc-cu12") from None
+        raise
+
+
 def ptxas_figures(text: str) -> dict:
     """The kernel's figures from `ptxas -v` output (the entry whose name holds 'kernel')."""
     fig = {}
@@ -220,8 +233,21 @@ def main(argv=None) -> int:
                     help="on a GPU: time each variant on N launches instead (0: not)")
     ap.add_argument("--steps", type=int, default=2000, help="RK steps a launch for --time")
     args = ap.parse_args(argv)
+    from ballsurvey.integrate.cuda import BackendError
+    from ballsurvey.integrate.tableaus import FIXED_STEP
+
+    methods = args.method.split(",")
+    unknown = [m for m in methods if m not in FIXED_STEP]
+    if unknown:
+        print(f"ptxas.py: --method {unknown[0]!r} is not a fixed-step method "
+              f"({', '.join(FIXED_STEP)})", file=sys.stderr)
+        return 2
     if args.time:
-        time_variants(args.method.split(","), args.time, args.steps)
+        try:
+            time_variants(methods, args.time, args.steps)
+        except BackendError as exc:
+            print(f"ptxas.py: --time needs a GPU: {exc}", file=sys.stderr)
+            return 2
         return 0
     m = re.fullmatch(r"sm_(\d+)(\d)", args.arch)
     if not m:
@@ -239,14 +265,14 @@ def main(argv=None) -> int:
     print(head)
     caps = [int(c) for c in args.cap.split(",") if c.strip()]
     variants = VARIANTS
-    for method in args.method.split(","):
+    for method in methods:
         for record, sums, carry in variants:
-            ptx = kernel_ptx(method, cc, record=record, sums=sums, carry=carry)
+            ptx = checked_ptx(method, cc, record=record, sums=sums, carry=carry)
             for cap in [None] + (caps if (record, sums, carry) == variants[-1] else []):
                 row(method, record, sums, carry, cap, measure(ptx, ptxas, args.arch, cap))
         # the step loop alone: an observer that records nothing (its code is left out)
         row(method, "none", "streamed", "shared", None,
-            measure(kernel_ptx(method, cc, bare=True), ptxas, args.arch))
+            measure(checked_ptx(method, cc, bare=True), ptxas, args.arch))
     return 0
 
 
