@@ -339,7 +339,7 @@ def make_view(ds: xr.Dataset, x: str | None = None, y: str | None = None,
     for k in at:
         if k in (x, y):
             raise InputError(f"--at {k}: {k} is an axis drawn; --at fixes one of the others")
-    select(ds[[]].assign_coords({}), **at)  # InputError for a value off the grid
+    select(ds, **at)  # InputError for a value off the grid (lazy: nothing is read)
     index = {}
     for d in dims:
         if d in (x, y):
