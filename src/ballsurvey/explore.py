@@ -286,6 +286,12 @@ class View:
             return self.ds.load() if not _in_memory(self.ds) else self.ds
         return self.ds.isel(self.index).transpose(self.y, self.x).load()
 
+    def loaded(self) -> View:
+        """This view over the slice shown, read into memory (for work on every launch)."""
+        if self.points:
+            return View(self.ds.load(), self.x, self.y, {})
+        return View(self.ds.isel(self.index).load(), self.x, self.y, {})
+
     def fixed_text(self) -> str:
         if self.points:
             return ""
@@ -403,8 +409,8 @@ def _fmt(k: str, v) -> str:
         return v
     if v is None or (isinstance(v, float) and not math.isfinite(v)):
         return "-"
-    fmt = FIELDS[k][2] if k in FIELDS else "%.4g"
-    return fmt % v
+    text = (FIELDS[k][2] if k in FIELDS else "%.4g") % v
+    return text[1:] if text.startswith("-") and float(text) == 0 else text  # no "-0.00"
 
 
 def launch_html(info: dict, again: xr.Dataset | None = None, note: str = "",
@@ -476,7 +482,8 @@ def _map_figure(view: View, title: str):
     parts = {}
     if view.points:
         src = ColumnDataSource(point_columns(view), name="points")
-        r = fig.scatter("x", "y", source=src, color="color", line_color="#333", size=10)
+        r = fig.scatter("x", "y", source=src, color="color", line_color="#333", size=14,
+                        nonselection_alpha=1.0)
         parts.update(points=src)
     else:
         g = grid_images(view)
@@ -579,8 +586,9 @@ def build_document(doc, ds: xr.Dataset, path, x=None, y=None, at=None) -> None:
         srcs["path"].data = {"x": traj.x.values, "y": traj.y.values}
         srcs["start"].data = {"x": traj.x.values[:1], "y": traj.y.values[:1]}
         srcs["theta"].data = {"t": traj.time.values, "theta": np.degrees(traj.theta.values)}
-        step = traj.attrs["dt_s"] if settings.method in FIXED_STEP else settings.dt
-        timing = (f"Integrated again in {took:.2f} s ({settings.method}, step {step:g} s, "
+        how = (f"step {traj.attrs['dt_s']:g} s" if settings.method in FIXED_STEP else
+               f"rtol {settings.rtol:g}, atol {settings.atol:g}")
+        timing = (f"Integrated again in {took:.2f} s ({settings.method}, {how}, "
                   f"T = {settings.T:g} s).")
         info_div.text = launch_html(info, traj, settings.note, timing)
         name = launch_name(info, (view.x, view.y))
@@ -804,8 +812,9 @@ def write_html(path, out, x=None, y=None, at=None, max_paths: int = MAX_HTML_PAT
     fig, parts = _map_figure(view, _title(ds, path))
     fp, _, srcs = _path_figures()
     with_paths = n <= max_paths
-    texts = [launch_html(launch_at(ds, view.where(k))) for k in range(n)]
-    cyc = precompute_cycles(ds, view, progress) if with_paths else {
+    here = view.loaded()
+    texts = [launch_html(launch_at(here.ds, here.where(k))) for k in range(n)]
+    cyc = precompute_cycles(here.ds, here, progress) if with_paths else {
         k: np.zeros(n, np.int32) for k in ("start", "count", "reps")} | {
         "px": np.zeros(0, np.float32), "py": np.zeros(0, np.float32), "turn": np.zeros(n)}
     csrc = ColumnDataSource({"start": cyc["start"], "count": cyc["count"], "turn": cyc["turn"],
