@@ -182,6 +182,14 @@ def test_cli_errors_are_one_line_exit_2(maps, capsys, monkeypatch):
         err = capsys.readouterr().err
         assert len(err.strip().splitlines()) == 1 and msg in err
     assert main(["explore", str(maps / "nope.nc"), "--no-browser"]) == 2
+    assert "no such file" in capsys.readouterr().err
+    with socket.socket() as busy:  # a port in use: one line, exit 1, before serving anything
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = str(busy.getsockname()[1])
+        assert main(["explore", str(maps / "grid.nc"), "--port", port, "--no-browser"]) == 1
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and f"127.0.0.1:{port}" in err
     monkeypatch.setitem(sys.modules, "bokeh", None)  # as if bokeh were not installed
     assert main(["explore", str(maps / "grid.nc")]) == 2
     assert "pip install 'ballsurvey[explore]'" in capsys.readouterr().err
@@ -305,8 +313,7 @@ def test_app_in_a_browser_shows_the_clicked_launch(maps, browser, tmp_path):
 
 def test_static_page_in_a_browser_draws_the_precomputed_path(maps, browser, tmp_path):
     out = tmp_path / "grid.html"
-    r = explore.write_html(maps / "grid.nc", out)
-    assert r == {"launches": 20, "paths": True}
+    assert main(["explore", str(maps / "grid.nc"), "--html", str(out)]) == 0
     html = out.read_text()
     assert "cdn.bokeh.org" not in html and "<script src=" not in html  # works offline
     browser.get(out.as_uri())
