@@ -38,11 +38,13 @@ from .gallery import BALL_KEYS, LAUNCH_KEYS, map_ball
 from .integrate.outcome import FORMULATIONS
 from .integrate.tableaus import FIXED_STEP
 from .limits import InputError, RunError, step_count
-from .plot import EXACT_POLYGON_LEVELS, LABEL_COLOURS, exact_polygon_field
+from .plot import EXACT_POLYGON_LEVELS, LABEL_COLOURS, axis_value_text, exact_polygon_field
 
 INSTALL_HINT = "pip install 'ballsurvey[explore]'"
 #: the static page precomputes paths for a shown slice of at most this many launches
 MAX_HTML_PATHS = 1024
+#: the largest slice a static page holds (hover and launch panel)
+MAX_HTML_LAUNCHES = 250_000
 #: samples kept along a clicked launch's path (about; fixed steps take a divisor of the steps)
 PATH_SAMPLES = 4000
 #: samples of the one theta cycle kept per launch in the static page
@@ -71,17 +73,17 @@ def require_bokeh() -> None:
         raise InputError(f"explore needs Bokeh, which is not installed: {INSTALL_HINT}") from None
 
 
+def _short(axis: str) -> str:
+    return axis[:-4] if axis.endswith("_deg") else axis
+
+
+def _unit(axis: str) -> str:
+    return AXES[axis].text_units if axis in AXES else ""
+
+
 def axis_text(axis: str) -> str:
     """'theta0 (deg)', 'chidot0 (rad/s)': an axis name as the CLI writes it, with its units."""
-    name = axis[:-4] if axis.endswith("_deg") else axis
-    unit = AXES[axis].text_units if axis in AXES else ""
-    return f"{name} ({unit})" if unit else name
-
-
-def value_text(axis: str, value: float) -> str:
-    name = axis[:-4] if axis.endswith("_deg") else axis
-    unit = AXES[axis].text_units if axis in AXES else ""
-    return f"{name} = {value:g} {unit}".rstrip()
+    return f"{_short(axis)} ({_unit(axis)})" if _unit(axis) else _short(axis)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -295,7 +297,8 @@ class View:
     def fixed_text(self) -> str:
         if self.points:
             return ""
-        return ", ".join(value_text(d, float(self.ds[d].values[i])) for d, i in self.index.items())
+        return ", ".join(axis_value_text(d, float(self.ds[d].values[i]))
+                         for d, i in self.index.items())
 
     def nearest(self, xv: float, yv: float) -> int:
         """k of the grid launch nearest to the point (xv, yv) in axis units."""
@@ -418,7 +421,7 @@ def launch_html(info: dict, again: xr.Dataset | None = None, note: str = "",
     """The launch panel: the launch, its label and fields as stored in the map and, when given,
     as integrated again; `note` (a warning) and `timing` below."""
     launch = {**info["launch"], **info["ball"]}
-    head = ", ".join(value_text(k, v) for k, v in launch.items())
+    head = ", ".join(axis_value_text(k, v) for k, v in launch.items())
     s = info["stored"]
     a = again.attrs if again is not None else {}
     rows = [("label", "", "label"), ("corner kind", "", "corner_kind")]
@@ -437,6 +440,27 @@ def launch_html(info: dict, again: xr.Dataset | None = None, note: str = "",
     return (f"<div class='bs-launch'><h3 style='margin:0'>{title}</h3><p>{name}{head}</p>"
             f"<table><tr><th>field</th><th>units</th><th>map</th>{col}</tr>{cells}</table>"
             f"{extra}</div>")
+
+
+def panel_spec() -> list:
+    """The launch panel's rows for the static page's JavaScript: [key, text, units, format]
+    with format [kind, digits] ('f': fixed, 'g': significant), as `launch_html` lays them."""
+    rows = [["label", "label", "", None], ["corner_kind", "corner kind", "", None]]
+    return rows + [[k, text, units, [fmt[-1], int(fmt[2:-1])]]
+                   for k, (text, units, fmt) in FIELDS.items()]
+
+
+def launch_columns(view: View) -> dict:
+    """Per-launch columns of a view read into memory (`View.loaded`), in launch order k: label
+    and corner kind codes, the panel's fields, and a points map's names and launch values."""
+    p = view.ds
+    if not view.points:
+        p = p.transpose(view.y, view.x)
+    cols = {k: np.ravel(p[k].values) for k in ("label", "corner_kind", *FIELDS) if k in p}
+    if view.points:
+        cols["name"] = [str(v) for v in p["name"].values]
+        cols.update({k: np.ravel(p[k].values) for k in LAUNCH_KEYS})
+    return cols
 
 
 def legend_html(present, curves: bool) -> str:
@@ -728,7 +752,33 @@ if (kind === 'grid') {
   if (!sel || sel.length == 0) { return; }
   k = sel[0];
 }
-info.text = texts[k];
+const F = fields.data, fmt = (v, f) => {
+  if (v == null || !isFinite(v)) { return '-'; }
+  let t = f[0] == 'f' ? v.toFixed(f[1]) : String(Number(v.toPrecision(f[1])));
+  return (Number(t) == 0 && t[0] == '-') ? t.slice(1) : t;
+};
+const word = (table, v) => (v >= 0 && v < table.length) ? table[v] : '(not written)';
+let rows = '';
+for (const [key, text, units, f] of spec) {
+  if (!(key in F)) { continue; }
+  const v = F[key][k];
+  const shown = key == 'label' ? word(words, v) :
+    key == 'corner_kind' ? word(corners, v) : fmt(v, f);
+  rows += `<tr><td>${text}</td><td>${units}</td>` +
+    `<td class='bs-map' data-field='${key}'>${shown}</td></tr>`;
+}
+const g6 = (v) => String(Number(Number(v).toPrecision(6)));
+let head = '';
+if (kind === 'grid') {
+  const i = k % xs.length, j = Math.floor(k / xs.length);
+  head = `${xname} = ${g6(xs[i])} ${xunit}, ${yname} = ${g6(ys[j])} ${yunit}` +
+    (fixed ? ', ' + fixed : '');
+} else {
+  head = F.name[k] + ': ' +
+    launch_keys.map(([c, nm, u]) => `${nm} = ${g6(F[c][k])} ${u}`).join(', ');
+}
+info.text = `<div class='bs-launch'><h3 style='margin:0'>${word(words, F.label[k])}</h3>` +
+  `<p>${head}</p><table><tr><th>field</th><th>units</th><th>map</th></tr>${rows}</table></div>`;
 const c = cyc.data, a = c.start[k], n = c.count[k];
 if (n == 0) { path.data = {x: [], y: []}; start.data = {x: [], y: []}; return; }
 const px = flat.data.px[0].slice(a, a + n), py = flat.data.py[0].slice(a, a + n);
@@ -812,8 +862,12 @@ def write_html(path, out, x=None, y=None, at=None, max_paths: int = MAX_HTML_PAT
     fig, parts = _map_figure(view, _title(ds, path))
     fp, _, srcs = _path_figures()
     with_paths = n <= max_paths
+    if n > MAX_HTML_LAUNCHES:
+        raise InputError(f"the slice shown has {n} launches; a static page holds at most "
+                         f"{MAX_HTML_LAUNCHES}: draw shorter axes (--x, --y) or use the app "
+                         "(without --html), which reads each slice as it is shown")
     here = view.loaded()
-    texts = [launch_html(launch_at(here.ds, here.where(k))) for k in range(n)]
+    fields_src = ColumnDataSource(launch_columns(here), name="fields")
     cyc = precompute_cycles(here.ds, here, progress) if with_paths else {
         k: np.zeros(n, np.int32) for k in ("start", "count", "reps")} | {
         "px": np.zeros(0, np.float32), "py": np.zeros(0, np.float32), "turn": np.zeros(n)}
@@ -829,8 +883,12 @@ def write_html(path, out, x=None, y=None, at=None, max_paths: int = MAX_HTML_PAT
     grid = parts.get("grid", {"xs": [], "ys": []})
     js = CustomJS(args=dict(kind="points" if view.points else "grid",
                             xs=[float(v) for v in grid["xs"]], ys=[float(v) for v in grid["ys"]],
-                            marker=parts["marker"], info=info, texts=texts, cyc=csrc, flat=flat,
-                            path=srcs["path"], start=srcs["start"]),
+                            marker=parts["marker"], info=info, fields=fields_src, cyc=csrc,
+                            flat=flat, path=srcs["path"], start=srcs["start"],
+                            spec=panel_spec(), words=list(LABELS), corners=list(CORNER_KINDS),
+                            xname=_short(view.x), yname=_short(view.y),
+                            xunit=_unit(view.x), yunit=_unit(view.y), fixed=view.fixed_text(),
+                            launch_keys=[(k, _short(k), _unit(k)) for k in LAUNCH_KEYS]),
                   code=_STATIC_TAP_JS)
     if view.points:
         fig.add_tools(TapTool(renderers=[parts["renderer"]]))
@@ -846,5 +904,6 @@ def write_html(path, out, x=None, y=None, at=None, max_paths: int = MAX_HTML_PAT
                     f"{s.dt:g} s, T = {s.T:g} s. Written by ballsurvey explore --html.</p>")
     page = row(column(fig, legend, fixed, foot), column(info, fp))
     html = file_html(page, INLINE, title=f"ballsurvey: {_title(ds, path)}")
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
     Path(out).write_text(html, encoding="utf-8")
     return {"launches": n, "paths": with_paths}
