@@ -272,9 +272,6 @@ class View:
     def points(self) -> bool:
         return is_points(self.ds)
 
-    def others(self) -> list[str]:
-        return [] if self.points else [d for d in self.ds.label.dims if d not in (self.x, self.y)]
-
     def where(self, k: int):
         """`launch_at`'s `where` of launch k of the view (grid: k = j * nx + i, j up)."""
         if self.points:
@@ -285,7 +282,7 @@ class View:
     def panel(self) -> xr.Dataset:
         """The slice shown, read from the file (grid: dims (y, x); points: the launches)."""
         if self.points:
-            return self.ds.load() if not _in_memory(self.ds) else self.ds
+            return self.ds.load()
         return self.ds.isel(self.index).transpose(self.y, self.x).load()
 
     def loaded(self) -> View:
@@ -305,10 +302,6 @@ class View:
         i = int(np.argmin(np.abs(self.ds[self.x].values - xv)))
         j = int(np.argmin(np.abs(self.ds[self.y].values - yv)))
         return j * self.ds.sizes[self.x] + i
-
-
-def _in_memory(ds) -> bool:
-    return all(v.variable._in_memory for v in ds.data_vars.values())
 
 
 def make_view(ds: xr.Dataset, x: str | None = None, y: str | None = None,
@@ -363,8 +356,9 @@ def point_axes(ds: xr.Dataset) -> list[str]:
 
 
 def grid_images(view: View) -> dict:
-    """Image arrays of the slice shown (rows up, pixels resampled for uneven axes), the axes'
-    pixel edges, and the per-launch arrays on the grid (rows j, columns i)."""
+    """Image arrays of the slice shown (rows up, pixels resampled for uneven axes), the pixel
+    edges (x0, x1, y0, y1), the exact-polygon curves {n_sides: (x, y)}, the label codes present
+    and the axes' values."""
     p = view.panel()
     xs, ys = p[view.x].values.astype(float), p[view.y].values.astype(float)
     x0, x1, ix = axis_pixels(xs)
@@ -387,8 +381,8 @@ def grid_images(view: View) -> dict:
         curves = {lv: (np.asarray(lx), np.asarray(ly))
                   for lv, lx, ly in zip(lines.levels, lines.xs, lines.ys)}
     present = sorted({int(v) for v in np.unique(lab[np.isfinite(lab)])})
-    return {"images": images, "edges": (x0, x1, y0, y1), "grid": grid, "curves": curves,
-            "present": present, "xs": xs, "ys": ys}
+    return {"images": images, "edges": (x0, x1, y0, y1), "curves": curves, "present": present,
+            "xs": xs, "ys": ys}
 
 
 def point_columns(view: View) -> dict:
@@ -497,9 +491,10 @@ def _map_figure(view: View, title: str):
     marker = ColumnDataSource({"x": [], "y": []}, name="marker")
     words = CustomJSHover(args={"words": list(LABELS)},
                           code="return isNaN(value) ? '(not written)' : words[value];")
-    fmt = {f"@{k}": "printf" for k in HOVER_FIELDS}
-    tips = [(axis_text(view.x), "@xv"), (axis_text(view.y), "@yv")] if not view.points else \
-        [("name", "@name"), (axis_text(view.x), "@x"), (axis_text(view.y), "@y")]
+    fmt = {f"@{k}": "printf" for k in (*HOVER_FIELDS, "xv", "yv", "x", "y")}
+    tips = [(axis_text(view.x), "@xv{%.6g}"), (axis_text(view.y), "@yv{%.6g}")] \
+        if not view.points else [("name", "@name"), (axis_text(view.x), "@x{%.6g}"),
+                                 (axis_text(view.y), "@y{%.6g}")]
     tips.append(("label", "@image{custom}" if not view.points else "@label"))
     tips += [(f"{FIELDS[k][0]} ({FIELDS[k][1]})" if FIELDS[k][1] else FIELDS[k][0],
               f"@{k}{{{FIELDS[k][2]}}}") for k in HOVER_FIELDS]
@@ -531,6 +526,14 @@ def _map_figure(view: View, title: str):
                 line_color="black", line_width=2)
     parts.update(marker=marker, renderer=r)
     return fig, parts
+
+
+def _legend(parts: dict) -> str:
+    """The legend of a map figure made by `_map_figure`: the labels drawn, the curves."""
+    if "points" in parts:
+        words = parts["points"].data["label"]
+        return legend_html(sorted({LABELS.index(w) for w in words if w in LABELS}), False)
+    return legend_html(parts["grid"]["present"], bool(parts["grid"]["curves"]))
 
 
 def _path_figures():
@@ -578,9 +581,7 @@ def build_document(doc, ds: xr.Dataset, path, x=None, y=None, at=None) -> None:
     fig, parts = _map_figure(view, _title(ds, path))
     fp, ft, srcs = _path_figures()
     fixed = Div(text=view.fixed_text(), name="fixed")
-    legend = Div(text=legend_html(parts["grid"]["present"] if not view.points else sorted(
-        {LABELS.index(w) for w in parts["points"].data["label"] if w in LABELS}),
-        bool(parts.get("grid", {}).get("curves"))), name="legend")
+    legend = Div(text=_legend(parts), name="legend")
     info_div = Div(text="<p>Click a launch on the map: it is integrated again with the map's "
                         f"{settings.method}, step {settings.dt:g} s, for {settings.T:g} s.</p>",
                    width=460, name="launch")
@@ -895,9 +896,7 @@ def write_html(path, out, x=None, y=None, at=None, max_paths: int = MAX_HTML_PAT
         parts["points"].selected.js_on_change("indices", js)
     else:
         fig.js_on_event("tap", js)
-    legend = Div(text=legend_html(parts["grid"]["present"] if not view.points else sorted(
-        {LABELS.index(w) for w in parts["points"].data["label"] if w in LABELS}),
-        bool(parts.get("grid", {}).get("curves"))))
+    legend = Div(text=_legend(parts))
     fixed = Div(text=view.fixed_text())
     s = run_settings(ds)
     foot = Div(text=f"<p style='font-size:11px'>Map {Path(str(path)).name}: {s.method}, step "
