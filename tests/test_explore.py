@@ -76,7 +76,7 @@ def maps(tmp_path_factory):
 def stored(path, **at) -> dict:
     """The map's own values at a launch, read with xarray (not through explore)."""
     with xr.open_dataset(path) as ds:
-        one = ds.sel(at).load()
+        one = (ds.isel(at) if "launch" in at else ds.sel(at)).load()
     from ballsurvey.classify.labels import LABELS
 
     return {"label": LABELS[int(one.label)], "n_sides": float(one.n_sides)}
@@ -150,6 +150,22 @@ def test_only_the_slice_shown_is_read_and_the_sliders_move_it(maps):
         doc.get_model_by_name("launch").text
     assert "phidot0 = -2.5" in doc.get_model_by_name("toml").text
     assert doc.get_model_by_name("downloads").data["csv"][0].startswith("t_s,x_m,y_m")
+
+
+def test_points_map_app_selects_a_point(maps):
+    from bokeh.document import Document
+
+    ds = explore.open_lazily(maps / "points.nc")
+    doc = Document()
+    explore.build_document(doc, ds, maps / "points.nc")
+    src = doc.get_model_by_name("points")
+    i = src.data["name"].index("tall")
+    src.selected.indices = [i]  # as a tap on the point selects it
+    text = doc.get_model_by_name("launch").text
+    want = stored(maps / "points.nc", launch=i)
+    assert f"<td class='bs-map' data-field='label'>{want['label']}</td>" in text
+    assert "tall: theta0 = 20 deg, thetadot0 = 0.5 rad/s" in text and "chi0 = 30 deg" in text
+    assert 'name = "tall"' in doc.get_model_by_name("toml").text
 
 
 def test_uneven_axis_pixels_show_their_nearest_value():
