@@ -73,6 +73,20 @@ def maps(tmp_path_factory):
     return d
 
 
+@pytest.fixture
+def lazy():
+    """explore.open_lazily, each map closed when the test ends (HDF5 errors on a later open of a
+    file whose lazily opened handle was left to the garbage collector)."""
+    held = []
+
+    def open_(path):
+        held.append(explore.open_lazily(path))
+        return held[-1]
+    yield open_
+    for ds in held:
+        ds.close()
+
+
 def stored(path, **at) -> dict:
     """The map's own values at a launch, read with xarray (not through explore)."""
     with xr.open_dataset(path) as ds:
@@ -84,8 +98,8 @@ def stored(path, **at) -> dict:
 
 # ---------------------------------------------------------------------------------------------
 # without a browser
-def test_a_click_integrates_with_the_maps_settings_and_agrees_with_it(maps):
-    ds = explore.open_lazily(maps / "grid.nc")
+def test_a_click_integrates_with_the_maps_settings_and_agrees_with_it(maps, lazy):
+    ds = lazy(maps / "grid.nc")
     s = explore.run_settings(ds)
     assert (s.T, s.dt, s.method, s.thresholds.mu) == (3.0, 2e-4, "rk4", 0.35)
     view = explore.make_view(ds)
@@ -101,8 +115,8 @@ def test_a_click_integrates_with_the_maps_settings_and_agrees_with_it(maps):
             assert traj.attrs["n_sides"] == pytest.approx(info["stored"]["n_sides"], abs=6e-3)
 
 
-def test_path_csv_and_points_entry_give_the_launch_back(maps):
-    ds = explore.open_lazily(maps / "grid.nc")
+def test_path_csv_and_points_entry_give_the_launch_back(maps, lazy):
+    ds = lazy(maps / "grid.nc")
     view = explore.make_view(ds)
     k = view.nearest(CLICK["theta0_deg"], CLICK["chidot0"])
     info = explore.launch_at(ds, view.where(k))
@@ -121,11 +135,11 @@ def test_path_csv_and_points_entry_give_the_launch_back(maps):
         assert spec.points[key][0] == v
 
 
-def test_only_the_slice_shown_is_read_and_the_sliders_move_it(maps):
+def test_only_the_slice_shown_is_read_and_the_sliders_move_it(maps, lazy):
     from bokeh.document import Document
     from bokeh.events import Tap
 
-    ds = explore.open_lazily(maps / "grid.nc")
+    ds = lazy(maps / "grid.nc")
     with xr.open_dataset(maps / "grid.nc") as f:
         full = f.load()
     doc = Document()
@@ -152,10 +166,10 @@ def test_only_the_slice_shown_is_read_and_the_sliders_move_it(maps):
     assert doc.get_model_by_name("downloads").data["csv"][0].startswith("t_s,x_m,y_m")
 
 
-def test_points_map_app_selects_a_point(maps):
+def test_points_map_app_selects_a_point(maps, lazy):
     from bokeh.document import Document
 
-    ds = explore.open_lazily(maps / "points.nc")
+    ds = lazy(maps / "points.nc")
     doc = Document()
     explore.build_document(doc, ds, maps / "points.nc")
     src = doc.get_model_by_name("points")
@@ -176,14 +190,14 @@ def test_uneven_axis_pixels_show_their_nearest_value():
     assert (lo, hi, list(idx)) == (0.5, 3.5, [2, 1, 0])
 
 
-def test_views_refuse_axes_the_map_lacks(maps):
-    ds = explore.open_lazily(maps / "grid.nc")
+def test_views_refuse_axes_the_map_lacks(maps, lazy):
+    ds = lazy(maps / "grid.nc")
     for kw, msg in ((dict(x="c"), "not an axis"), (dict(x="chidot0", y="chidot0"), "same axis"),
                     (dict(at={"theta0_deg": 2.0}), "axis drawn"),
                     (dict(at={"phidot0": -2.0}), "not on the map's grid")):
         with pytest.raises(api.InputError, match=msg):
             explore.make_view(ds, **kw)
-    pts = explore.open_lazily(maps / "points.nc")
+    pts = lazy(maps / "points.nc")
     with pytest.raises(api.InputError, match="named points"):
         explore.make_view(pts, at={"phidot0": -3.0})
     view = explore.make_view(pts)

@@ -852,21 +852,25 @@ def write_html(path, out, x=None, y=None, at=None, max_paths: int = MAX_HTML_PAT
     """Write the static page for the map at `path` to `out` (an .html file, Bokeh inlined).
     Returns {"launches": launches in the slice shown, "paths": whether paths were precomputed}."""
     require_bokeh()
+    with open_lazily(path) as ds:  # closed after: a later open of the file must not fail
+        return _write_html(ds, path, out, x, y, at, max_paths, progress)
+
+
+def _write_html(ds, path, out, x, y, at, max_paths, progress) -> dict:
     from bokeh.embed import file_html
     from bokeh.layouts import column, row
     from bokeh.models import ColumnDataSource, CustomJS, Div, TapTool
     from bokeh.resources import INLINE
 
-    ds = open_lazily(path)
     view = make_view(ds, x, y, at)
     n = ds.sizes["launch"] if view.points else ds.sizes[view.x] * ds.sizes[view.y]
-    fig, parts = _map_figure(view, _title(ds, path))
-    fp, _, srcs = _path_figures()
-    with_paths = n <= max_paths
     if n > MAX_HTML_LAUNCHES:
         raise InputError(f"the slice shown has {n} launches; a static page holds at most "
                          f"{MAX_HTML_LAUNCHES}: draw shorter axes (--x, --y) or use the app "
                          "(without --html), which reads each slice as it is shown")
+    fig, parts = _map_figure(view, _title(ds, path))
+    fp, _, srcs = _path_figures()
+    with_paths = n <= max_paths
     here = view.loaded()
     fields_src = ColumnDataSource(launch_columns(here), name="fields")
     cyc = precompute_cycles(here.ds, here, progress) if with_paths else {
