@@ -378,8 +378,8 @@ def grid_images(view: View) -> dict:
         ox, oy = np.argsort(xs), np.argsort(ys)
         lines = contour_data(xs[ox], ys[oy], ns[np.ix_(oy, ox)], list(EXACT_POLYGON_LEVELS),
                              want_fill=False, want_line=True).line_data
-        curves = {lv: (np.asarray(lx), np.asarray(ly))
-                  for lv, lx, ly in zip(lines.levels, lines.xs, lines.ys)}
+        curves = {float(lv): (np.asarray(lx), np.asarray(ly))
+                  for lv, lx, ly in zip(lines.levels, lines.xs, lines.ys) if len(lx)}
     present = sorted({int(v) for v in np.unique(lab[np.isfinite(lab)])})
     return {"images": images, "edges": (x0, x1, y0, y1), "curves": curves, "present": present,
             "xs": xs, "ys": ys}
@@ -457,14 +457,17 @@ def launch_columns(view: View) -> dict:
     return cols
 
 
-def legend_html(present, curves: bool) -> str:
+def legend_html(present, curves=()) -> str:
+    """The map's legend: a swatch per label code in `present`, and the exact-polygon curves
+    drawn (`curves`: their n_sides levels)."""
     items = "".join(
         f"<span style='display:inline-block;margin-right:10px'><span style='display:inline-block;"
         f"width:12px;height:12px;background:{LABEL_COLOURS[LABELS[c]]};border:1px solid #666;"
         f"vertical-align:middle'></span> {LABELS[c].replace('_', '-')}</span>" for c in present)
-    if curves:
-        items += ("<span>&nbsp;solid line: exact square (n = 4), dashed: exact triangle "
-                  "(n = 3)</span>")
+    lines = [text for lv, text in ((4.0, "solid line: exact square (n = 4)"),
+                                   (3.0, "dashed line: exact triangle (n = 3)")) if lv in curves]
+    if lines:
+        items += f"<span>&nbsp;{', '.join(lines)}</span>"
     return f"<div style='font-size:12px'>{items}</div>"
 
 
@@ -532,8 +535,8 @@ def _legend(parts: dict) -> str:
     """The legend of a map figure made by `_map_figure`: the labels drawn, the curves."""
     if "points" in parts:
         words = parts["points"].data["label"]
-        return legend_html(sorted({LABELS.index(w) for w in words if w in LABELS}), False)
-    return legend_html(parts["grid"]["present"], bool(parts["grid"]["curves"]))
+        return legend_html(sorted({LABELS.index(w) for w in words if w in LABELS}))
+    return legend_html(parts["grid"]["present"], parts["grid"]["curves"])
 
 
 def _path_figures():
@@ -648,7 +651,7 @@ def build_document(doc, ds: xr.Dataset, path, x=None, y=None, at=None) -> None:
             for lv, src in parts["lines"].items():
                 lx, ly = g["curves"].get(lv, ([], []))
                 src.data = {"x": lx, "y": ly}
-            legend.text = legend_html(g["present"], bool(g["curves"]))
+            legend.text = legend_html(g["present"], g["curves"])
             fixed.text = view.fixed_text()
         fig.xaxis.axis_label, fig.yaxis.axis_label = axis_text(view.x), axis_text(view.y)
         parts["marker"].data = {"x": [], "y": []}
