@@ -106,6 +106,9 @@ def run_settings(ds: xr.Dataset) -> RunSettings:
     """The map's method, step, duration, tolerances, classifier thresholds and ball."""
     a = ds.attrs
     method, note = str(a.get("run_method", "rk4")), ""
+    if "run_method" not in a or "run_dt_s" not in a:
+        note = ("the map records no method or step: this launch is integrated with "
+                f"{method}, step {float(a.get('run_dt_s', 1e-4)):g} s")
     if method not in METHODS:  # an adaptive pair on SIMD lanes: one launch takes dopri5
         note = (f"the map's {method} integrates ensembles only: this launch is integrated with "
                 f"dopri5 at the map's rtol and atol")
