@@ -225,6 +225,17 @@ def test_cli_errors_are_one_line_exit_2(maps, capsys, monkeypatch):
     assert "pip install 'ballsurvey[explore]'" in capsys.readouterr().err
 
 
+def test_static_page_limits(maps, tmp_path, monkeypatch):
+    r = explore.write_html(maps / "grid.nc", tmp_path / "a.html", max_paths=5)  # 20 shown
+    assert r == {"launches": 20, "paths": False}
+    assert "paths are precomputed for slices of at most 5 launches" in \
+        (tmp_path / "a.html").read_text()
+    monkeypatch.setattr(explore, "MAX_HTML_LAUNCHES", 10)
+    with pytest.raises(api.InputError, match="at most 10"):
+        explore.write_html(maps / "grid.nc", tmp_path / "b.html")
+    assert not (tmp_path / "b.html").exists()
+
+
 def test_help_states_the_static_pages_path_limit():
     from ballsurvey.cli import build_parser
 
