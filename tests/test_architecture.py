@@ -6,7 +6,8 @@
     classify/     physics/ and itself
     then layers, each importing only its own layer or lower ones:
     0 _jit, axes, limits, ball   1 physics   2 integrate, classify   3 compose, units, quadrature
-    4 sweep, store, simulate   5 plot, query, find, paper, accuracy, bench, refine, period, gallery
+    4 sweep, store, simulate   5 plot, query, find, paper, accuracy, bench, refine, period, gallery,
+    explore
     6 cli   7 __main__
 The package root (`ballsurvey/__init__.py`) may be imported for `__version__` only.
 """
@@ -30,7 +31,7 @@ LAYER = {
     "compose": 3, "units": 3, "quadrature": 3,
     "sweep": 4, "store": 4, "simulate": 4,
     "plot": 5, "query": 5, "find": 5, "paper": 5, "accuracy": 5, "bench": 5, "refine": 5,
-    "period": 5, "gallery": 5, "api": 5,
+    "period": 5, "gallery": 5, "api": 5, "explore": 5,
     "cli": 6, "__main__": 7,
 }
 #: rooms that may import only the rooms named (besides themselves)

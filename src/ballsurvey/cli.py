@@ -338,6 +338,26 @@ def _cmd_plot(args):
     print(f"wrote {out}")
 
 
+def _cmd_explore(args):
+    from .explore import require_bokeh
+
+    require_bokeh()
+    port = _opt("--port", args.port, integer=True, lo=1, hi=65535)
+    at = _parse_at(args.at)
+    if args.html is not None:
+        from .explore import write_html
+
+        out = _out_file("--html", args.html, ".html")
+        r = write_html(args.result, out, x=args.x, y=args.y, at=at)
+        paths = "with paths" if r["paths"] else "without paths (slice too large)"
+        print(f"wrote {out} ({r['launches']} launches shown, {paths})")
+        return
+    from .explore import serve
+
+    serve(args.result, port=int(port), open_browser=not args.no_browser, x=args.x, y=args.y,
+          at=at, ready=lambda line: print(line, flush=True))
+
+
 def _cmd_path(args):
 
     from . import limits
@@ -719,6 +739,24 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("-o", "--output", default="results/path.png", metavar="FILE",
                    help="figure file, .png, .pdf or .svg")
     q.set_defaults(func=_cmd_path)
+
+    e = cmd("explore", help="explore a map in the browser: hover, click a launch to see its "
+                            "path (needs ballsurvey[explore])")
+    e.add_argument("result", help="a ballsurvey netCDF map (.nc)")
+    e.add_argument("--port", type=int, default=5006, metavar="P",
+                   help="port of the local app (served on 127.0.0.1 only)")
+    e.add_argument("--no-browser", action="store_true",
+                   help="print the address instead of opening a browser")
+    e.add_argument("--x", metavar="AXIS", help="axis drawn across (default: the second longest)")
+    e.add_argument("--y", metavar="AXIS", help="axis drawn up (default: the longest)")
+    e.add_argument("--at", action="append", metavar="AXIS=VALUE",
+                   help="start another axis at one of its values (repeatable), in its units "
+                        "(deg or rad/s); default: its first value")
+    e.add_argument("--html", metavar="OUT.html",
+                   help="instead: write a self-contained static page (works offline) with hover "
+                        "values and, for a slice of at most 1024 launches, each launch's path "
+                        "precomputed over one theta cycle and drawn on click")
+    e.set_defaults(func=_cmd_explore)
 
     r = cmd("query", help="list the launches of a map that give a shape, best first")
     r.add_argument("result", help="a ballsurvey netCDF map (.nc)")

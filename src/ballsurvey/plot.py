@@ -147,6 +147,24 @@ def default_axes(ds: xr.Dataset, exclude=(), need: int = 2) -> tuple[str, ...]:
     return tuple(dims[:need])
 
 
+#: n_sides of the exact-polygon curves drawn over a map: the exact triangle and square
+EXACT_POLYGON_LEVELS = (3.0, 4.0)
+
+
+def exact_polygon_field(panel: xr.Dataset, x: str, y: str) -> np.ndarray | None:
+    """n_sides on the (y, x) grid of a 2-D panel, NaN outside n_sides < 6, for the curves
+    n_sides = 3 and 4 (`EXACT_POLYGON_LEVELS`); None where no curve can be drawn: no n_sides
+    variable, an axis with fewer than 3 values, fewer than 4 such values or no triangle or
+    square launch."""
+    if "n_sides" not in panel or min(panel.sizes[x], panel.sizes[y]) < 3:
+        return None
+    ns = np.asarray(panel.n_sides.transpose(y, x).values, dtype=float)
+    poly = np.isin(panel.label.transpose(y, x).values, [LABELS.index("triangle"),
+                                                         LABELS.index("square")])
+    ns = np.where(np.isfinite(ns) & (ns < 6), ns, np.nan)
+    return ns if np.isfinite(ns).sum() >= 4 and poly.any() else None
+
+
 def plot_map(ds: xr.Dataset, out, x: str | None = None, y: str | None = None,
              at: dict | None = None, facet: str | None = None, contours: bool = True):
     """Draw a regime map: one colour per label over axes x (across) and y (up).
@@ -215,15 +233,12 @@ def map_figure(ds: xr.Dataset, x: str | None = None, y: str | None = None,
         present |= set(int(v) for v in np.unique(lab[np.isfinite(lab)]))
         xs, ys = panel[x].values, panel[y].values
         ax.pcolormesh(xs, ys, lab, cmap=cmap, norm=norm, shading="nearest")
-        if contours and "n_sides" in panel and min(len(xs), len(ys)) >= 3:
-            ns = panel.n_sides.transpose(y, x).values
-            poly = np.isin(panel.label.transpose(y, x).values, [LABELS.index("triangle"),
-                                                                 LABELS.index("square")])
-            ns = np.where(np.isfinite(ns) & (ns < 6), ns, np.nan)
-            if np.isfinite(ns).sum() >= 4 and poly.any():
-                cs = ax.contour(xs, ys, ns, levels=[3.0, 4.0], colors="k", linewidths=1.0)
-                ax.clabel(cs, fmt={3.0: "n=3", 4.0: "n=4"}, fontsize=8)
-                drew_contours = True
+        ns = exact_polygon_field(panel, x, y) if contours else None
+        if ns is not None:
+            cs = ax.contour(xs, ys, ns, levels=list(EXACT_POLYGON_LEVELS), colors="k",
+                            linewidths=1.0)
+            ax.clabel(cs, fmt={3.0: "n=3", 4.0: "n=4"}, fontsize=8)
+            drew_contours = True
         ax.set_xlabel(AXIS_TEXT.get(x, x))
         ax.set_ylabel(AXIS_TEXT.get(y, y))
         if facet:
