@@ -440,13 +440,17 @@ def _cmd_find(args):
         raise SystemExit(1) from None
     unit = "deg" if args.solve == "theta0_deg" else "rad/s"
     for s in sols:
+        called = "" if s.label == {3: "triangle", 4: "square"}.get(n, "ngon") else \
+            f" (labelled {s.label})"
         print(f"{s.variable} = {s.value:.10g} {unit}: integrated (adaptive, rtol 1e-10): "
-              f"{s.label}, n_sides = {s.n_sides:.9f}, turn per cycle "
+              f"{s.shape}{called}, roundness {s.roundness:.3f}, {s.corner_kind} corners, "
+              f"n_sides = {s.n_sides:.9f}, turn per cycle "
               f"{s.turn_per_cycle_deg:.7f} deg, theta period {s.theta_period_s:.6f} s, "
               f"closure {s.closure_m:.2e} m per circuit")
     for s in rejected:
         print(f"not a solution: {s.variable} = {s.value:.10g} {unit} turns 360/{n} deg per cycle "
-              f"but integrates as {s.label} (n_sides = {s.n_sides:.6f})")
+              f"but integrates as {s.label} (n_sides = {s.n_sides:.6f}, roundness "
+              f"{s.roundness:.3f}, {s.corner_kind} corners)")
 
 
 def _cmd_refine(args):
