@@ -128,7 +128,8 @@ def _orbit_s(attrs: dict) -> float:
 def draw_gallery(ds: xr.Dataset, out, per_label: int = 4, seed: int = 0, T: float | None = None,
                  dt: float | None = None, labels=None) -> list[dict]:
     """Draw the gallery PNG; returns the sampled rows with the label of the re-integration
-    (`label_again`, with the map's own settings: `map_settings`). T, dt: duration and step (s) of
+    (`label_again`, with the map's own settings: `map_settings`) and the duration drawn
+    (`drawn_s`, s). T, dt: duration and step (s) of
     each integration, by default the map's. Each panel draws the whole T; a map made with a method
     `simulate` does not offer (dop853, the lanes' pair) is drawn with dopri5 at the map's
     tolerances, its label still computed with the map's method."""
@@ -164,6 +165,7 @@ def draw_gallery(ds: xr.Dataset, out, per_label: int = 4, seed: int = 0, T: floa
                        method=draw_method, rtol=s["rtol"], atol=s["atol"],
                        thresholds=s["thresholds"])
         x, y = sim.x.values, sim.y.values
+        r["drawn_s"] = float(sim.time.values[-1])
         one = sim.time.values <= _orbit_s(sim.attrs)
         ax = axes[words.index(r["label"]), col[r["label"]]]
         col[r["label"]] += 1
