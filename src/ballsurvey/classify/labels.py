@@ -4,11 +4,16 @@ One vocabulary for store, plot and query: `LABELS` (shape words, then status wor
 codes stored in files. Shape and validity are separate: a launch that blew up, hit the Euler form's
 singularity, slipped, lifted off or rolled onto its flat face gets a status word, never a shape.
 
-How a label is decided: README "What the labels mean" states every rule and threshold in words;
-the code below is that list, in the same order (per-cycle quantities only, so a label does not
-change with T). Roundness is the spread of the path's distance from the orbit centre over a cycle
-(the observer measures it; every cycle is a rotated copy about that centre, so it holds for the
-whole orbit) over its mean.
+How a label is decided: one principle, the word says what the eye sees over one orbit (the n
+cycles, n = 360 / |net turn per cycle|, after which the path would close). docs/labels.md states
+every rule and threshold in words, with a picture per word; the code below is that list (per-cycle
+quantities only, so a label does not change with T). In short: a path within +-5 % of one circle
+is a `circle` whatever small ripples, corners or specks of loops it has; else loops the eye sees
+(the speed stays up through them) make a `rosette`; a turn over 125 deg per cycle with points is a
+`star`; everything else is named by its nearest whole n: under 2.5 a precessing oval (`rosette`),
+3 `triangle`, 4 `square`, more `ngon`. Roundness is the spread of the path's distance from the
+orbit centre over a cycle (the observer measures it; every cycle is a rotated copy about that
+centre, so it holds for the whole orbit) over its mean.
 Status first: the run's own failure (non-finite state or step underflow -> `blew_up`; out of steps
 -> `unresolved`; the Euler chart's singularity with no fixed-frame run -> `singular`) is passed
 in by the caller as a label word (`failure`); the labeller adds the validity checks (energy drift,
