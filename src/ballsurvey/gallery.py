@@ -152,7 +152,7 @@ def draw_gallery(ds: xr.Dataset, out, per_label: int = 4, seed: int = 0, T: floa
     n_out = _drawn_samples(s["T"], s["dt"], draw_method not in ("dopri5", "adaptive"))
     words = list(dict.fromkeys(r["label"] for r in rows))
     ncol = max(sum(r["label"] == w for r in rows) for w in words)
-    fig = Figure(figsize=(2.6 * ncol, 2.9 * len(words)), layout="constrained")
+    fig = Figure(figsize=(max(2.6 * ncol, 7.0), 2.9 * len(words) + 0.3), layout="constrained")
     axes = fig.subplots(len(words), ncol, squeeze=False)
     for ax in axes.ravel():
         ax.set_axis_off()
@@ -183,13 +183,18 @@ def draw_gallery(ds: xr.Dataset, out, per_label: int = 4, seed: int = 0, T: floa
             f"n={r.get('n_sides', math.nan):.3f} turn={r.get('turn_per_cycle_deg', math.nan):.1f}° "
             f"round={r.get('roundness', math.nan):.3f} {r.get('corner_kind', '')}",
             fontsize=6.5)
-    how = (f"{s['method']}, rtol {s['rtol']:g}" if s["method"] not in METHODS
-           or draw_method in ("dopri5", "adaptive") else f"{s['method']}, dt {s['dt']:g} s")
-    if draw_method != s["method"]:
-        how += f" (drawn with {draw_method})"
-    mode = f", labels after {s['cycles']} cycles" if s["cycles"] else ""
-    fig.suptitle(f"{ds.attrs.get('title', 'map')}: sample paths per label, integrated again with "
-                 f"the map's settings ({how}{mode})\nthe whole {s['T']:g} s in grey, its first "
-                 f"orbit in blue (x, y in cm; dot: start; rates in rad/s)", fontsize=9)
+    if s["method"] in ("dopri5", "adaptive"):
+        how = f"{s['method']}, rtol {s['rtol']:g}, atol {s['atol']:g}"
+    elif s["method"] in METHODS:
+        how = f"{s['method']}, dt {s['dt']:g} s"
+    else:  # the lanes' pair: tolerances, and the observer samples every dt * observe_every
+        how = (f"{s['method']}, rtol {s['rtol']:g}, observed every "
+               f"{s['dt'] * s['observe_every']:g} s; drawn with {draw_method}")
+    if s["cycles"]:
+        how += f"; labels after {s['cycles']} theta cycles"
+    fig.suptitle(f"{ds.attrs.get('title', 'map')}: sample paths per label, labelled again with "
+                 f"the map's settings\n({how}, its [classify] thresholds)\ngrey: the whole "
+                 f"{s['T']:g} s; blue: the first orbit (x, y in cm; dot: start; rates in rad/s)",
+                 fontsize=8)
     fig.savefig(out, dpi=110)
     return rows
