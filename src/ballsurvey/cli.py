@@ -418,8 +418,9 @@ def _cmd_find(args):
         t0 = time.perf_counter()
         rows = trace(n, np.linspace(start, stop, int(num)), launch, args.bracket)
         took = time.perf_counter() - t0
-        lines = ["theta0_deg,chidot0_rad_s,n_sides_integrated,closure_m,label"] + [
-            f"{th:.6g},{s.value:.9g},{s.n_sides:.9f},{s.closure_m:.2e},{s.label}" for th, s in rows]
+        lines = ["theta0_deg,chidot0_rad_s,n_sides_integrated,closure_m,label,shape"] + [
+            f"{th:.6g},{s.value:.9g},{s.n_sides:.9f},{s.closure_m:.2e},{s.label},{s.shape}"
+            for th, s in rows]
         if out is not None:
             out.write_text("\n".join(lines) + "\n")
             print(f"wrote {len(rows)} points of the n = {n} curve to {args.output} "
@@ -689,8 +690,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="only launches whose corner drifts at most METRES (m) per circuit")
     r.set_defaults(func=_cmd_query)
 
-    gl = cmd("gallery", help="draw sample paths behind each label of a map, integrated again, "
-                             "to check the labels by eye")
+    gl = cmd("gallery", help="draw sample paths behind each label of a map, the whole run and "
+                             "its first orbit, labelled again with the map's own method, step, "
+                             "tolerances and [classify] thresholds, to check the labels by eye")
     gl.add_argument("result", help="a ballsurvey netCDF map (.nc)")
     gl.add_argument("-o", "--output", metavar="FILE.png",
                     help="PNG file (default: RESULT-gallery.png)")
@@ -705,7 +707,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="folder for the PNGs")
     pp.set_defaults(func=_cmd_paper)
 
-    fd = cmd("find", help="solve for the launch condition that closes an exact n-gon")
+    fd = cmd("find", help="solve for the launch condition that closes an exact n-gon; only roots "
+                          "whose integrated path is that polygon (no loops; a rounded one the "
+                          "labeller calls a circle is reported as 'rounded square' etc.)")
     g = fd.add_mutually_exclusive_group(required=True)
     g.add_argument("--shape", metavar="WORD", help="triangle or square (other polygons: --n-sides)")
     g.add_argument("--n-sides", type=int, metavar="N",
