@@ -379,7 +379,7 @@ def _cmd_find(args):
     import numpy as np
 
     from . import limits
-    from .find import NoSolution, find_launch, trace
+    from .find import SHAPE_OF_N, NoSolution, find_launch, trace
 
     _opt("--n-sides", args.n_sides, integer=True, lo=3, hi=1000)
     for name in ("theta0_deg", "thetadot0", "chidot0", "phidot0"):
@@ -441,8 +441,7 @@ def _cmd_find(args):
         raise SystemExit(1) from None
     unit = "deg" if args.solve == "theta0_deg" else "rad/s"
     for s in sols:
-        called = "" if s.label == {3: "triangle", 4: "square"}.get(n, "ngon") else \
-            f" (labelled {s.label})"
+        called = "" if s.label == SHAPE_OF_N.get(n, "ngon") else f" (labelled {s.label})"
         print(f"{s.variable} = {s.value:.10g} {unit}: integrated (adaptive, rtol 1e-10): "
               f"{s.shape}{called}, roundness {s.roundness:.3f}, {s.corner_kind} corners, "
               f"n_sides = {s.n_sides:.9f}, turn per cycle "
@@ -690,9 +689,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="only launches whose corner drifts at most METRES (m) per circuit")
     r.set_defaults(func=_cmd_query)
 
-    gl = cmd("gallery", help="draw sample paths behind each label of a map, the whole run and "
-                             "its first orbit, labelled again with the map's own method, step, "
-                             "tolerances and [classify] thresholds, to check the labels by eye")
+    gl = cmd("gallery", help="draw sample paths behind each label of a map, integrated again, "
+                             "to check the labels by eye")
     gl.add_argument("result", help="a ballsurvey netCDF map (.nc)")
     gl.add_argument("-o", "--output", metavar="FILE.png",
                     help="PNG file (default: RESULT-gallery.png)")
@@ -707,9 +705,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="folder for the PNGs")
     pp.set_defaults(func=_cmd_paper)
 
-    fd = cmd("find", help="solve for the launch condition that closes an exact n-gon; only roots "
-                          "whose integrated path is that polygon (no loops; a rounded one the "
-                          "labeller calls a circle is reported as 'rounded square' etc.)")
+    fd = cmd("find", help="solve for the launch condition that closes an exact n-gon")
     g = fd.add_mutually_exclusive_group(required=True)
     g.add_argument("--shape", metavar="WORD", help="triangle or square (other polygons: --n-sides)")
     g.add_argument("--n-sides", type=int, metavar="N",
