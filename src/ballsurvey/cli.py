@@ -442,7 +442,7 @@ def _cmd_find(args):
     import numpy as np
 
     from . import limits
-    from .find import NoSolution, find_launch, trace
+    from .find import SHAPE_OF_N, NoSolution, find_launch, trace
 
     _opt("--n-sides", args.n_sides, integer=True, lo=3, hi=1000)
     for name in ("theta0_deg", "thetadot0", "chidot0", "phidot0"):
@@ -481,8 +481,9 @@ def _cmd_find(args):
         t0 = time.perf_counter()
         rows = trace(n, np.linspace(start, stop, int(num)), launch, args.bracket)
         took = time.perf_counter() - t0
-        lines = ["theta0_deg,chidot0_rad_s,n_sides_integrated,closure_m,label"] + [
-            f"{th:.6g},{s.value:.9g},{s.n_sides:.9f},{s.closure_m:.2e},{s.label}" for th, s in rows]
+        lines = ["theta0_deg,chidot0_rad_s,n_sides_integrated,closure_m,label,shape"] + [
+            f"{th:.6g},{s.value:.9g},{s.n_sides:.9f},{s.closure_m:.2e},{s.label},{s.shape}"
+            for th, s in rows]
         if out is not None:
             out.write_text("\n".join(lines) + "\n")
             print(f"wrote {len(rows)} points of the n = {n} curve to {args.output} "
@@ -503,13 +504,16 @@ def _cmd_find(args):
         raise SystemExit(1) from None
     unit = "deg" if args.solve == "theta0_deg" else "rad/s"
     for s in sols:
+        called = "" if s.label == SHAPE_OF_N.get(n, "ngon") else f" (labelled {s.label})"
         print(f"{s.variable} = {s.value:.10g} {unit}: integrated (adaptive, rtol 1e-10): "
-              f"{s.label}, n_sides = {s.n_sides:.9f}, turn per cycle "
+              f"{s.shape}{called}, roundness {s.roundness:.3f}, {s.corner_kind} corners, "
+              f"n_sides = {s.n_sides:.9f}, turn per cycle "
               f"{s.turn_per_cycle_deg:.7f} deg, theta period {s.theta_period_s:.6f} s, "
               f"closure {s.closure_m:.2e} m per circuit")
     for s in rejected:
         print(f"not a solution: {s.variable} = {s.value:.10g} {unit} turns 360/{n} deg per cycle "
-              f"but integrates as {s.label} (n_sides = {s.n_sides:.6f})")
+              f"but integrates as {s.label} (n_sides = {s.n_sides:.6f}, roundness "
+              f"{s.roundness:.3f}, {s.corner_kind} corners)")
 
 
 def _cmd_refine(args):

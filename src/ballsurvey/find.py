@@ -4,8 +4,11 @@ The net turn per theta cycle comes from the quadrature of the conserved quantiti
 (`quadrature.py`: no time stepping), so it is a cheap, smooth function of any one launch variable;
 where the quadrature cannot resolve a cycle (theta max within a hair of 90 deg) an adaptive
 integration stands in. `find_launch` scans a bracket for sign changes of |turn(v)| - 360/n, refines
-each by bisection to 1e-12 relative, and integrates every root: only roots whose integrated path
-has the asked label are solutions (closure error of the path printed with them).
+each by bisection to 1e-12 relative, and integrates every root: a root is a solution only if its
+integrated path is the shape (`shape_of_root`): labelled that polygon (so without loops the eye
+sees, with its corners where the polygon has them), or a rounded polygon the labeller calls a
+circle (within +-5 % of one circle, no loops) whose n lobes still show; it is printed with the
+closure error of its path.
 """
 from __future__ import annotations
 
@@ -28,19 +31,27 @@ class NoSolution(ValueError):
 
 @dataclass
 class Solution:
-    variable: str
-    value: float
-    n_sides: float
+    """A root of the turn per cycle and what its integrated path is."""
+
+    variable: str  #: the solved launch variable
+    value: float  #: its value (deg for theta0_deg, else rad/s)
+    n_sides: float  #: 360 / |turn per cycle| of the integrated path
     turn_per_cycle_deg: float
     theta_period_s: float
-    closure_m: float
-    label: str
+    closure_m: float  #: how far a corner drifts per circuit (m)
+    label: str  #: the integrated path's label word
+    roundness: float = math.nan  #: radial spread / mean radius about the orbit centre
+    corner_kind: str = ""
+    shape: str = ""  #: what the path is: 'square', 'rounded square', ... ('' if not the shape)
 
 
 #: the integration that checks every root and stands in where the quadrature cannot resolve a
 #: cycle: the adaptive pair at a tight tolerance (the fixed-frame form takes over near 90 deg)
 CHECK_RTOL, CHECK_ATOL = 1e-10, 1e-13
 SHAPE_OF_N = {3: "triangle", 4: "square"}
+#: a root labelled circle whose roundness is at least this (its n lobes spread the path by at
+#: least +-0.5 % of its radius, about a line's width in a drawn path) is a rounded polygon
+MIN_ROUNDED = 0.01
 
 
 def _launch_with(launch: dict, var: str, v: float) -> dict:
@@ -73,9 +84,25 @@ def _turn(launch: dict, var: str, v: float, ball: Ball) -> float:
     return abs(a["turn_per_cycle_deg"])
 
 
-def _shape_ok(n: int, label: str, n_sides: float) -> bool:
-    want = SHAPE_OF_N.get(n, "ngon")
-    return label == want and round(n_sides) == n
+def polygon_name(n: int) -> str:
+    """'triangle', 'square', else 'n-gon'."""
+    return SHAPE_OF_N.get(n, f"{n}-gon")
+
+
+def shape_of_root(n: int, attrs: dict) -> str:
+    """What an integrated root (simulate's attrs) is, as asked for n sides: the polygon's name if
+    the labeller calls it that polygon ('square'); 'rounded square' if it calls it a circle but
+    the path has n visible lobes and no loops (roundness at least MIN_ROUNDED); '' otherwise
+    (a ring of loops, a star, a line, a status word, another n)."""
+    label, n_sides = attrs["label"], attrs["n_sides"]
+    if not (math.isfinite(n_sides) and round(n_sides) == n):
+        return ""
+    if label == SHAPE_OF_N.get(n, "ngon"):
+        return polygon_name(n)
+    if (label == "circle" and attrs.get("corner_kind") != "loop"
+            and attrs.get("roundness", 0.0) >= MIN_ROUNDED):
+        return "rounded " + polygon_name(n)
+    return ""
 
 
 def find_launch(n: int, launch: dict, solve: str = "chidot0", bracket=None,
@@ -88,8 +115,10 @@ def find_launch(n: int, launch: dict, solve: str = "chidot0", bracket=None,
     resolve the cycle (theta max within a hair of 90 deg); a sign change is bracketed only between
     two scan points where the turn is known. Each root is refined by bisection to 1e-12 relative
     and, with `check`, integrated (adaptive, rtol 1e-10): a root whose integrated path is not the
-    asked shape (e.g. a round path that turns 90 deg per cycle without corners) is not returned
-    but appended to `rejected`. Raises NoSolution (saying the range of n seen) when none is left.
+    asked shape (`shape_of_root`: a ring of loops, or a path within a line's width of a circle)
+    is not returned but appended to `rejected`; a rounded polygon the labeller calls a circle is
+    returned with `shape` 'rounded square' etc. Raises NoSolution (saying the range of n seen)
+    when none is left.
     """
     if solve not in SOLVABLE:
         raise ValueError(f"--solve must be one of {', '.join(SOLVABLE)}, got {solve!r}")
@@ -137,7 +166,10 @@ def find_launch(n: int, launch: dict, solve: str = "chidot0", bracket=None,
             sol.label = a["label"]
             sol.n_sides = a["n_sides"]
             sol.turn_per_cycle_deg = a["turn_per_cycle_deg"]
-            if not _shape_ok(n, a["label"], a["n_sides"]):
+            sol.roundness = a["roundness"]
+            sol.corner_kind = a["corner_kind"]
+            sol.shape = shape_of_root(n, a)
+            if not sol.shape:
                 if rejected is not None:
                     rejected.append(sol)
                 continue
@@ -147,7 +179,7 @@ def find_launch(n: int, launch: dict, solve: str = "chidot0", bracket=None,
         seen = (f"n from {360 / finite.max():.3f} to {360 / max(finite.min(), 1e-9):.3f}"
                 if finite.size else "no oscillating launches")
         why = (f"; {len(roots)} root(s) of the turn integrate as another shape "
-               f"({', '.join(f'{s.value:.6g}: {s.label}' for s in rejected or [])})"
+               f"({', '.join(f'{s.value:.6g}: {s.label} {s.corner_kind}' for s in rejected or [])})"
                if roots else "")
         raise NoSolution(f"no {solve} in [{lo:g}, {hi:g}] gives n = {n} ({seen}{why}, other "
                          f"variables { {k: v for k, v in launch.items() if k != solve} })")

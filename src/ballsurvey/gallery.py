@@ -1,10 +1,15 @@
 """Gallery: sample paths behind each label of a stored map, integrated again, to check labels by
 eye.
 
-For every label found in a map, up to K launches are drawn at random (seeded), integrated again
-from their stored launch conditions with the map's ball and duration, and drawn in small panels
-titled with the launch, the label and the fields it was decided on (n_sides, turn per cycle,
-roundness, corner kind). The panel shows about one orbit (360 deg of net turn) or the whole run.
+For every label found in a map, up to K launches are drawn at random (seeded) and integrated again
+from their stored launch conditions with the map's own settings, read from its attributes: the ball
+(`ball_*`), duration, method, step, tolerances, observer spacing, period mode (`run_*`) and
+classifier thresholds (`classify_*`, the spec's [classify] table). The label of that run is the
+map's own label computed again (`label_again`), so a panel says "again: ..." only where the map
+and a fresh run of its own settings disagree. Each panel draws the whole run (T seconds of the
+path, every orbit of it, so a path that does not close shows its precession), titled with the
+launch, the label and the fields it was decided on (n_sides, turn per cycle, roundness, corner
+kind).
 """
 from __future__ import annotations
 
@@ -15,17 +20,41 @@ import xarray as xr
 
 from .axes import LAUNCH_AXES
 from .ball import Ball
-from .classify.labels import CORNER_KINDS, LABELS
+from .classify.labels import CORNER_KINDS, LABELS, Thresholds
+from .compose import METHODS, survey
+from .limits import step_count
 from .store import decode_label, launches
 
 LAUNCH_KEYS = LAUNCH_AXES + ("chi0_deg",)
 BALL_KEYS = ("a", "c", "M", "A", "B", "g", "cut_height")  #: a map's ball_* attributes
+#: most samples drawn per panel (a fixed-step path is sampled on a divisor of its step count)
+MAX_DRAWN = 20001
 
 
 def map_ball(ds: xr.Dataset) -> Ball:
     """The ball a map was computed with (its global attributes)."""
     kw = {k: float(ds.attrs[f"ball_{k}"]) for k in BALL_KEYS if f"ball_{k}" in ds.attrs}
     return Ball(**kw) if kw else Ball.paper()
+
+
+def map_settings(ds: xr.Dataset) -> dict:
+    """The run and classifier settings a map was made with, from its `run_*` and `classify_*`
+    attributes (defaults of a spec where a map lacks one): T (s), dt (s, as asked), method, rtol,
+    atol, observe_every, cycles (period mode; 0: the whole T) and `thresholds`."""
+    a = ds.attrs
+
+    def num(key, default, kind=float):
+        v = a.get(key)
+        return default if v is None else kind(v)
+
+    known = {f for f in Thresholds().as_dict()}
+    th = Thresholds.from_mapping({k[len("classify_"):]: np.asarray(v).item() for k, v in a.items()
+                                  if k.startswith("classify_") and k[len("classify_"):] in known})
+    return {"T": num("run_T_s", 20.0), "dt": num("run_dt_s_requested", num("run_dt_s", 1e-4)),
+            "method": str(a.get("run_method", "rk4")), "rtol": num("run_rtol", 1e-9),
+            "atol": num("run_atol", 1e-12), "observe_every": num("run_observe_every", 4, int),
+            "cycles": num("run_cycles", 0, int) if a.get("run_mode", "fixed") == "period" else 0,
+            "thresholds": th}
 
 
 def sample_launches(ds: xr.Dataset, per_label: int = 4, seed: int = 0,
@@ -60,10 +89,50 @@ def sample_launches(ds: xr.Dataset, per_label: int = 4, seed: int = 0,
     return rows
 
 
+def _label_again(rows: list[dict], base: Ball, s: dict) -> list[str]:
+    """The rows' labels from a fresh run with the map's settings (one batch, as a sweep runs)."""
+    n = len(rows)
+    table = {k: np.array([r.get(k, 0.0) for r in rows], dtype=float) for k in LAUNCH_KEYS}
+    for k, v in base.as_dict().items():
+        table[k] = np.array([r.get(k, v) for r in rows], dtype=float)
+    f = survey(table, T=s["T"], dt=s["dt"], method=s["method"], rtol=s["rtol"], atol=s["atol"],
+               observe_every=s["observe_every"], cycles=s["cycles"], thresholds=s["thresholds"],
+               parallel=n > 1)
+    return [LABELS[int(c)] for c in f["label"]]
+
+
+def _drawn_samples(T: float, dt: float, fixed: bool) -> int:
+    """Samples of a drawn path: for a fixed step, n_out - 1 divides the map's step count (so the
+    drawing keeps the map's step); otherwise (or with no such divisor) 4001 or more."""
+    if not fixed:
+        return MAX_DRAWN
+    steps = step_count(T, dt)
+    for stride in range(max(1, math.ceil(steps / (MAX_DRAWN - 1))), steps + 1):
+        if steps % stride == 0:
+            if steps // stride >= 2000:
+                return steps // stride + 1
+            break
+    return 4001
+
+
+def _orbit_s(attrs: dict) -> float:
+    """Duration (s) of one orbit of a drawn path: 360 deg of net turn (a star {p/q}: p cycles),
+    at least two theta cycles; inf where the run has no turn per cycle."""
+    turn, period = attrs.get("turn_per_cycle_deg"), attrs.get("theta_period_s")
+    if not (turn and period and math.isfinite(turn) and math.isfinite(period)) or abs(turn) < 1e-3:
+        return math.inf
+    cycles = attrs["star_points"] if attrs.get("star_points", 0) > 0 else 360.0 / abs(turn)
+    return period * max(cycles, 2.0)
+
+
 def draw_gallery(ds: xr.Dataset, out, per_label: int = 4, seed: int = 0, T: float | None = None,
                  dt: float | None = None, labels=None) -> list[dict]:
     """Draw the gallery PNG; returns the sampled rows with the label of the re-integration
-    (`label_again`). T, dt: duration and step (s) of each integration, by default the map's."""
+    (`label_again`, with the map's own settings: `map_settings`) and the duration drawn
+    (`drawn_s`, s). T, dt: duration and step (s) of
+    each integration, by default the map's. Each panel draws the whole T; a map made with a method
+    `simulate` does not offer (dop853, the lanes' pair) is drawn with dopri5 at the map's
+    tolerances, its label still computed with the map's method."""
     from matplotlib.figure import Figure
 
     from .simulate import simulate
@@ -72,11 +141,18 @@ def draw_gallery(ds: xr.Dataset, out, per_label: int = 4, seed: int = 0, T: floa
     if not rows:
         raise ValueError("the map has no labelled launches")
     base = map_ball(ds)
-    T_run = float(T if T is not None else ds.attrs.get("run_T_s", 20.0))
-    dt = float(dt if dt is not None else ds.attrs.get("run_dt_s", 1e-4))
+    s = map_settings(ds)
+    if T is not None:
+        s["T"] = float(T)
+    if dt is not None:
+        s["dt"] = float(dt)
+    for r, again in zip(rows, _label_again(rows, base, s)):
+        r["label_again"] = again
+    draw_method = s["method"] if s["method"] in METHODS else "dopri5"
+    n_out = _drawn_samples(s["T"], s["dt"], draw_method not in ("dopri5", "adaptive"))
     words = list(dict.fromkeys(r["label"] for r in rows))
     ncol = max(sum(r["label"] == w for r in rows) for w in words)
-    fig = Figure(figsize=(2.6 * ncol, 2.9 * len(words)), layout="constrained")
+    fig = Figure(figsize=(max(2.6 * ncol, 7.0), 2.9 * len(words) + 0.3), layout="constrained")
     axes = fig.subplots(len(words), ncol, squeeze=False)
     for ax in axes.ravel():
         ax.set_axis_off()
@@ -85,22 +161,17 @@ def draw_gallery(ds: xr.Dataset, out, per_label: int = 4, seed: int = 0, T: floa
         ball_kw = {k: r[k] for k in BALL_KEYS if k in r}
         ball = Ball(**{**base.as_dict(), **ball_kw}) if ball_kw else base
         launch = {k: r[k] for k in LAUNCH_KEYS if k in r}
-        sim = simulate(**launch, T=T_run, dt=dt, ball=ball, n_out=4001)
-        r["label_again"] = sim.attrs["label"]
-        x, y, t = sim.x.values, sim.y.values, sim.time.values
-        turn, period = sim.attrs.get("turn_per_cycle_deg"), sim.attrs.get("theta_period_s")
-        if turn and period and math.isfinite(turn) and math.isfinite(period) and abs(turn) > 1e-3:
-            cycles = 360.0 / abs(turn)  # one orbit; a star {p/q} closes after p cycles
-            if sim.attrs.get("star_points", 0) > 0:
-                cycles = sim.attrs["star_points"]
-            t_show = min(T_run, 1.15 * period * cycles)
-            t_show = max(t_show, min(T_run, 3 * period))
-            keep = t <= t_show
-            x, y = x[keep], y[keep]
+        sim = simulate(**launch, T=s["T"], dt=s["dt"], ball=ball, n_out=n_out,
+                       method=draw_method, rtol=s["rtol"], atol=s["atol"],
+                       thresholds=s["thresholds"])
+        x, y = sim.x.values, sim.y.values
+        r["drawn_s"] = float(sim.time.values[-1])
+        one = sim.time.values <= _orbit_s(sim.attrs)
         ax = axes[words.index(r["label"]), col[r["label"]]]
         col[r["label"]] += 1
         ax.set_axis_on()
-        ax.plot(x * 100, y * 100, lw=0.7)
+        ax.plot(x * 100, y * 100, lw=0.4, color="0.7")
+        ax.plot(x[one] * 100, y[one] * 100, lw=0.7, color="C0")
         ax.plot(x[:1] * 100, y[:1] * 100, "o", ms=3, color="k")
         ax.set_aspect("equal", adjustable="datalim")
         ax.tick_params(labelsize=6)
@@ -112,7 +183,18 @@ def draw_gallery(ds: xr.Dataset, out, per_label: int = 4, seed: int = 0, T: floa
             f"n={r.get('n_sides', math.nan):.3f} turn={r.get('turn_per_cycle_deg', math.nan):.1f}° "
             f"round={r.get('roundness', math.nan):.3f} {r.get('corner_kind', '')}",
             fontsize=6.5)
-    fig.suptitle(f"{ds.attrs.get('title', 'map')}: sample paths per label, integrated again for "
-                 f"{T_run:g} s (x, y in cm; dot: start; rates in rad/s)", fontsize=9)
+    if s["method"] in ("dopri5", "adaptive"):
+        how = f"{s['method']}, rtol {s['rtol']:g}, atol {s['atol']:g}"
+    elif s["method"] in METHODS:
+        how = f"{s['method']}, dt {s['dt']:g} s"
+    else:  # the lanes' pair: tolerances, and the observer samples every dt * observe_every
+        how = (f"{s['method']}, rtol {s['rtol']:g}, observed every "
+               f"{s['dt'] * s['observe_every']:g} s; drawn with {draw_method}")
+    if s["cycles"]:
+        how += f"; labels after {s['cycles']} theta cycles"
+    fig.suptitle(f"{ds.attrs.get('title', 'map')}: sample paths per label, labelled again with "
+                 f"the map's settings\n({how}, its [classify] thresholds)\ngrey: the whole "
+                 f"{s['T']:g} s; blue: the first orbit (x, y in cm; dot: start; rates in rad/s)",
+                 fontsize=8)
     fig.savefig(out, dpi=110)
     return rows

@@ -88,8 +88,8 @@ def reproduce(out_dir="results/paper", ball: Ball | None = None, T_label: float 
         a = runs[name].attrs
         rows.append((f"Fig. {name[3:]} shape", "approximately circular", a["label"],
                      a["label"] == "circle",
-                     f"n_sides {a['n_sides']:.2f}, sharpness {a['corner_sharpness']:.2f}, "
-                     f"monotonicity {a['turn_monotonicity']:.2f}"))
+                     f"roundness {a['roundness']:.3f}: within +-{50 * a['roundness']:.1f} % "
+                     f"of one circle ({a['n_sides']:.2f} cycles per orbit)"))
     a12 = runs["fig12a"].attrs
     rows += [
         ("Fig. 12a theta range (deg)", "about 0 .. about 90",

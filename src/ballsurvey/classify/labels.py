@@ -4,11 +4,16 @@ One vocabulary for store, plot and query: `LABELS` (shape words, then status wor
 codes stored in files. Shape and validity are separate: a launch that blew up, hit the Euler form's
 singularity, slipped, lifted off or rolled onto its flat face gets a status word, never a shape.
 
-How a label is decided: README "What the labels mean" states every rule and threshold in words;
-the code below is that list, in the same order (per-cycle quantities only, so a label does not
-change with T). Roundness is the spread of the path's distance from the orbit centre over a cycle
-(the observer measures it; every cycle is a rotated copy about that centre, so it holds for the
-whole orbit) over its mean.
+How a label is decided: one principle, the word says what the eye sees over one orbit (the n
+cycles, n = 360 / |net turn per cycle|, after which the path would close). docs/labels.md states
+every rule and threshold in words, with a picture per word; the code below is that list (per-cycle
+quantities only, so a label does not change with T). In short: a path within +-5 % of one circle
+is a `circle` whatever small ripples, corners or specks of loops it has; else loops the eye sees
+(the speed stays up through them) make a `rosette`; a turn over 125 deg per cycle with points is a
+`star`; everything else is named by its nearest whole n: under 2.5 a precessing oval (`rosette`),
+3 `triangle`, 4 `square`, more `ngon`. Roundness is the spread of the path's distance from the
+orbit centre over a cycle (the observer measures it; every cycle is a rotated copy about that
+centre, so it holds for the whole orbit) over its mean.
 Status first: the run's own failure (non-finite state or step underflow -> `blew_up`; out of steps
 -> `unresolved`; the Euler chart's singularity with no fixed-frame run -> `singular`) is passed
 in by the caller as a label word (`failure`); the labeller adds the validity checks (energy drift,
@@ -45,19 +50,17 @@ class Thresholds:
     steady_theta_tol_deg: float = 0.5  #: theta range below it -> steady circle
     star_min_turn_deg: float = 125.0  #: |net turn per cycle| above it -> star polygon
     near_straight_ratio: float = 10.0  #: corner-circle radius / side above it -> near_straight
-    max_polygon_sides: float = 12.5  #: n_sides above it -> circle
-    corner_sharpness_min: float = 2.0  #: peak / mean heading rate below it -> no distinct corners
-    monotonicity_min: float = 0.75  #: |raw turn| / total turning below it -> no distinct corners
-    cusp_speed_ratio: float = 0.05  #: min speed / mean speed in a cycle below it -> cusp corner
+    #: min / mean speed in a cycle below it -> the corner is a point (a cusp, or a loop too small
+    #: to see)
+    cusp_speed_ratio: float = 0.15
     retrace_ratio: float = 0.03  #: chord / distance rolled per cycle below it -> retraced line
     max_star_points: int = 12  #: largest p searched for a star {p/q}
     max_energy_drift: float = 1e-4  #: |E - E0| / |E0| above it -> inaccurate (step too large)
-    #: radial spread / mean radius about the orbit centre above it -> not a circle
+    #: radial spread / mean radius about the orbit centre at most it -> circle
     max_roundness: float = 0.1
-    #: looped path with min / max distance from the orbit centre below it -> rosette
-    petal_ratio: float = 0.2
-    #: n_sides below it (turn near 180 deg): a precessing oval, not a star
-    star_min_sides: float = 2.25
+    #: peak / mean heading rate at least it (or cusped corners) -> a turn over star_min_turn_deg
+    #: per cycle has points: a star
+    star_sharpness_min: float = 4.0
     #: |thetadot|, |thetadot'| at launch below it (a/g units) -> launched steady
     steady_rate_tol: float = 1e-8
     #: observer samples per theta cycle below it -> unresolved (too few to see the path's shape)
@@ -161,7 +164,6 @@ def label_fields(obs: np.ndarray, flat_face_theta, th: Thresholds = Thresholds()
         raw_rad = np.abs(np.radians(raw))
         sharp = o[ob.O_C_PSID] * o[ob.O_C_DUR] / raw_rad  # peak / mean rate of the raw turn
         monotone = raw_rad / o[ob.O_C_TURN]
-        cusp = o[ob.O_C_VMIN] < th.cusp_speed_ratio * o[ob.O_C_VMEAN]
         star_p, star_q = star_type(turn, th.max_star_points)
         # closure: how far a corner drifts per circuit of the nearest closed polygon / star
         is_star = abs_turn > th.star_min_turn_deg
@@ -184,8 +186,11 @@ def label_fields(obs: np.ndarray, flat_face_theta, th: Thresholds = Thresholds()
     launched_steady = ((o[ob.O_THD0] < th.steady_rate_tol)
                        & (o[ob.O_THDD0] < th.steady_rate_tol))
     steady = (theta_range < th.steady_theta_tol_deg) & launched_steady
-    kind = np.where(loops != 0, CORNER_CODE["loop"],
-                    np.where(cusp, CORNER_CODE["cusp"], CORNER_CODE["rounded"]))
+    cusp = o[ob.O_C_VMIN] < th.cusp_speed_ratio * o[ob.O_C_VMEAN]
+    # a loop the eye sees: the velocity winds a whole extra turn in a cycle while the speed stays
+    # up; where it nearly stops the loop is a speck at a pointed corner, i.e. a cusp
+    kind = np.where(cusp, CORNER_CODE["cusp"],
+                    np.where(loops != 0, CORNER_CODE["loop"], CORNER_CODE["rounded"]))
     with np.errstate(invalid="ignore"):
         # the chord between maxima is a tiny part of the distance rolled: the path comes back
         # near where the cycle began (turning at a cusp, or on a petal: see below)
@@ -193,34 +198,29 @@ def label_fields(obs: np.ndarray, flat_face_theta, th: Thresholds = Thresholds()
     kind = np.where(retraced, CORNER_CODE["cusp"], kind)
     kind = np.where(has & ~steady, kind, CORNER_CODE["none"]).astype(np.int8)
 
-    label = np.full(n, CODE["ngon"], dtype=np.int8)
+    # one principle: the word says what the eye sees over one orbit. Rules from the most
+    # general look of the path (round, loops) to its details (points, number of sides); the
+    # later assignments below override the earlier ones, so they are written in reverse
     nn = np.rint(n_sides)
+    label = np.full(n, CODE["ngon"], dtype=np.int8)
     label[nn == 4] = CODE["square"]
     label[nn == 3] = CODE["triangle"]
-    distinct = (((sharp >= th.corner_sharpness_min) & (monotone >= th.monotonicity_min))
-                | (kind == CORNER_CODE["cusp"]))
-    polygonal = distinct & (n_sides <= th.max_polygon_sides)
+    # under 2.5 cycles per orbit: each cycle crosses most of the orbit, half of an oval that
+    # precesses (a two-sided path), unless it has points (below)
+    label[nn <= 2] = CODE["rosette"]
     with np.errstate(invalid="ignore"):
-        # loops through the middle of the orbit: each cycle is a petal, not a polygon's corner
-        petals = (kind == CORNER_CODE["loop"]) & (r_lo < th.petal_ratio * r_hi)
-        # turn near 180 deg per cycle: each cycle is half of an oval that precesses slowly
-        oval = is_star & (n_sides < th.star_min_sides)
-    polygonal &= ~(petals | oval)
-    # a star {p/q} steps over q >= 2 corners. A best fit {p/1} (a turn just over 125 deg with
-    # the default max_star_points; wider with a smaller one) is no star: a triangle drifting
-    # round where the nearest whole n is 3, else (n under 2.5, no star within max_star_points)
-    # a rosette, as rule 7 calls turns over 125 deg without a star's corners
-    label[is_star & polygonal & (star_q >= 2)] = CODE["star"]
-    label[is_star & polygonal & (star_q < 2) & (nn < 3)] = CODE["rosette"]
-    # no distinct corners (or too many): a circle if the path stays near one circle; a rosette if
-    # it loops, makes petals or turns more than a star's worth per cycle (ovals, rounded stars);
-    # else a rounded polygon, named by its nearest whole n like any other
+        pointed = (sharp >= th.star_sharpness_min) | (kind == CORNER_CODE["cusp"])
+    # a turn over star_min_turn_deg per cycle with points: a star {p/q}, which steps over q >= 2
+    # corners (a best fit {p/1} is no star: the nearest whole n names the path, as for a turn
+    # without points: a triangle precessing where n rounds to 3)
+    label[is_star & pointed & (star_q >= 2)] = CODE["star"]
+    # loops the eye sees (rings of loops, clovers, flowers of petals through the middle)
+    label[kind == CORNER_CODE["loop"]] = CODE["rosette"]
     with np.errstate(invalid="ignore"):
         round_enough = roundness <= th.max_roundness
-    rosette = is_star | (kind == CORNER_CODE["loop"])  # petals are looped corners too
-    rest = ~polygonal
-    label[rest & rosette] = CODE["rosette"]
-    label[rest & round_enough] = CODE["circle"]
+    # the whole orbit stays within +-max_roundness/2 of one circle: whatever ripples, scallops,
+    # specks of loops or small corners it has, the eye sees a circle
+    label[round_enough] = CODE["circle"]
     label[rho / side > th.near_straight_ratio] = CODE["near_straight"]
     # a retraced cycle goes back and forth along a line (no spin: the ball rocks in a vertical
     # plane through the upright position) ... unless its heading turns on the way: then each
