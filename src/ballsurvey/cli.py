@@ -78,8 +78,8 @@ def _figure_file(value):
 
 
 #: the order of `ballsurvey --help`: what a user does first comes first
-COMMAND_ORDER = ("path", "sweep", "plot", "query", "find", "gallery", "refine", "paper", "accuracy",
-                 "bench")
+COMMAND_ORDER = ("path", "sweep", "plot", "query", "find", "explore", "gallery", "refine", "paper",
+                 "accuracy", "bench")
 #: path's integration time (s) when --T is not given: long enough for the label on most launches
 PATH_T = 20.0
 
