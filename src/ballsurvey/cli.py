@@ -128,7 +128,8 @@ def _cmd_sweep(args):
 
     from . import limits
     from .sweep import SweepInterrupted, load_spec, run_sweep
-    from .sweep.engine import check_output_path, dask_client, output_is_current
+    from .sweep.engine import UpToDate, check_output_path, dask_client
+    from .sweep.parts import existing_output, tidy_finished
 
     out = _out_file("-o/--output", args.output, ".nc")
     chunk = args.chunk
@@ -147,15 +148,19 @@ def _cmd_sweep(args):
     if spec.backend == "cuda":
         _check_cuda()
 
-    if output_is_current(spec) and not args.force:
-        print(f"{spec.output} is up to date (made by this spec); --force recomputes it")
-        return
     verbosity = args.verbose - args.quiet
     progress = args.progress if args.progress is not None else (None if verbosity >= 0 else False)
 
     def notice(msg):
         if verbosity >= 0:
             print(f"ballsurvey sweep: {msg}", file=sys.stderr, flush=True)
+
+    try:  # before any cluster starts: an existing map this run would not touch
+        existing_output(spec, force=args.force)
+    except UpToDate as exc:
+        tidy_finished(spec, notice)
+        print(exc)
+        return
 
     last = [0.0]
 
@@ -243,7 +248,9 @@ def sweep_summary(path, n_launches: int, report: dict) -> str:
         head += f", {rate:,.0f} launches/s"
     if report.get("resumed"):
         head += f", {report['resumed']} of them from the interrupted run"
-    with xr.open_dataset(path) as ds:
+    from .store import netcdf_lock
+
+    with netcdf_lock(), xr.open_dataset(path) as ds:
         codes = ds.label.values.ravel()
         fallback = int((ds.formulation.values == 1).sum()) if "formulation" in ds else None
         title = ds.attrs.get("title", "")

@@ -30,6 +30,7 @@ import numpy as np
 from .. import limits
 from ..classify.labels import LABELS
 from ..limits import RunError
+from ..store import netcdf_lock
 from ..store import write_netcdf as _write_netcdf_store
 from .compute import ChunkInterrupted, compile_watch, compute_chunk, n_launches
 from .executors import DASK_WAIT_S, dask_client, run_dask, run_embedded
@@ -81,7 +82,7 @@ def verify_output(path: Path, spec: Spec) -> None:
     import netCDF4
 
     try:
-        with netCDF4.Dataset(path) as nc:
+        with netcdf_lock(direct=True), netCDF4.Dataset(path) as nc:
             ok = getattr(nc, "spec_digest", None) == spec.digest
             lab = nc.variables["label"]
             ok = ok and tuple(lab.shape) == tuple(spec.shape)

@@ -402,11 +402,42 @@ def load_spec(path, *, text: str | None = None, run: dict | None = None) -> Spec
     if not 0 <= compression <= 9:
         _err(src, "[output] compression", f"must be 0..9, got {compression}")
 
-    # the digest is of the parsed content: comments and layout may change, the sweep may not
-    digest = hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()
-    return Spec(text=text, source=src, title=title, ball=base_ball, kind=kind, axes=axes,
+    spec = Spec(text=text, source=src, title=title, ball=base_ball, kind=kind, axes=axes,
                 points=points, chi0_deg=chi0, T=T, dt=dt, method=method, rtol=rtol, atol=atol,
                 mode=mode, cycles=cycles,
                 observe_every=observe_every, block=block, chunk=chunk, thresholds=thresholds,
-                output=Path(ofile), variables=variables, compression=compression, digest=digest,
+                output=Path(ofile), variables=variables, compression=compression,
                 backend=backend)
+    return replace(spec, digest=spec_digest(spec))
+
+
+def _canon(v):
+    """A value for the digest: every number as the repr of its float (20 and 20.0 alike, -0.0 as
+    0.0), arrays and tuples as lists."""
+    if isinstance(v, np.ndarray):
+        v = v.tolist()
+    if isinstance(v, dict):
+        return {str(k): _canon(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_canon(x) for x in v]
+    if isinstance(v, bool) or v is None or isinstance(v, str):
+        return v
+    if isinstance(v, (int, float, np.number)):
+        return repr(float(v) + 0.0)
+    return str(v)
+
+
+def spec_digest(spec: Spec) -> str:
+    """SHA-256 of what a spec asks for, from its parsed and completed values: comments, layout,
+    how a number is written (20 or 20.0) and defaults written out or left to apply change
+    nothing. The chunk plan and the output file are not part of it (a map's results do not
+    depend on them)."""
+    what = {"title": spec.title, "ball": spec.ball.as_dict(), "kind": spec.kind,
+            "axes": [[k, v] for k, v in spec.axes.items()],
+            "points": [[k, v] for k, v in spec.points.items()], "chi0_deg": spec.chi0_deg,
+            "T": spec.T, "dt": spec.dt, "method": spec.method, "rtol": spec.rtol,
+            "atol": spec.atol, "mode": spec.mode, "cycles": spec.cycles,
+            "observe_every": spec.observe_every, "block": spec.block,
+            "thresholds": spec.thresholds.as_dict(), "variables": spec.variables,
+            "compression": spec.compression, "backend": spec.backend}
+    return hashlib.sha256(json.dumps(_canon(what), sort_keys=True).encode()).hexdigest()

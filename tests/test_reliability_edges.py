@@ -1,0 +1,290 @@
+"""Reliability at the edges: resuming across a change of code, the printed resume command,
+threads and netCDF, outputs inside a sweep's own folders, digests of parsed values. Tiny maps
+(T = 2 s, dt = 1e-3 s) keep it quick."""
+import json
+import shlex
+import shutil
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+import xarray as xr
+
+import ballsurvey
+from ballsurvey.cli import main
+from ballsurvey.limits import InputError
+from ballsurvey.sweep import parts, provenance, run_sweep
+from ballsurvey.sweep.engine import UpToDate, parts_dir
+from test_reliability import TINY, crashed_sweep, same_map, tiny_spec
+
+REPO_SRC = Path(ballsurvey.__file__).resolve().parent
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    d = tmp_path_factory.mktemp("ref")
+    with xr.open_dataset(run_sweep(tiny_spec(d, "ref.nc"), command="test")) as ds:
+        return ds.load()
+
+
+def other_code(monkeypatch):
+    """As if the package had changed since the parts or the map were written."""
+    monkeypatch.setattr(parts, "code_digest", lambda: "0" * 64)
+
+
+# ---------------------------------------------------------------------------------------------
+# the code digest
+def _package_copy(tmp_path):
+    dst = tmp_path / "pkg"
+    shutil.copytree(REPO_SRC, dst, ignore=shutil.ignore_patterns("__pycache__"))
+    return dst
+
+
+def _digest_of(monkeypatch, package):
+    monkeypatch.setattr(provenance, "PACKAGE", package)
+    provenance.compute_modules.cache_clear()
+    provenance.code_digest.cache_clear()
+    try:
+        return provenance.code_digest()
+    finally:
+        provenance.compute_modules.cache_clear()
+        provenance.code_digest.cache_clear()
+
+
+def test_code_digest_follows_the_code_that_computes_a_launch(tmp_path, monkeypatch):
+    """A classifier default, a kernel line or the version changes the digest; a comment, a
+    docstring or a module outside the compute path (the plots) does not."""
+    pkg = _package_copy(tmp_path)
+    base = _digest_of(monkeypatch, pkg)
+    assert base == _digest_of(monkeypatch, REPO_SRC)  # a copy of the same code: the same
+    modules = provenance.compute_modules()
+    for m in ("classify/labels.py", "compose.py", "integrate/ensemble.py", "sweep/compute.py",
+              "physics/euler.py", "integrate/adaptive_kernel.py", "store.py"):
+        assert m in modules
+    assert "plot.py" not in modules and "cli.py" not in modules
+
+    labels = pkg / "classify" / "labels.py"
+    text = labels.read_text()
+    labels.write_text(text.replace('"""', '"""A docstring changed. ', 1) + "\n# a comment\n")
+    assert _digest_of(monkeypatch, pkg) == base
+    (pkg / "plot.py").write_text((pkg / "plot.py").read_text() + "\nX = 1\n")
+    assert _digest_of(monkeypatch, pkg) == base
+    assert "    min_cycles: int = 2" in text
+    labels.write_text(text.replace("    min_cycles: int = 2", "    min_cycles: int = 3", 1))
+    assert _digest_of(monkeypatch, pkg) != base
+    labels.write_text(text)
+    init = pkg / "__init__.py"
+    init.write_text(init.read_text().replace('__version__ = "', '__version__ = "9'))
+    monkeypatch.setattr(provenance, "__version__", "9" + ballsurvey.__version__)
+    assert _digest_of(monkeypatch, pkg) != base
+
+
+def test_resume_across_a_code_change_is_refused_and_says_what_to_do(tmp_path, monkeypatch,
+                                                                     capsys, reference):
+    spec, p = crashed_sweep(tmp_path, at=1)
+    man = json.loads((p / "manifest.json").read_text())
+    assert man["code_digest"] == provenance.code_digest() and man["version"]
+    other_code(monkeypatch)
+    with pytest.raises(InputError, match="saved by other code.*--force without --resume"):
+        run_sweep(spec, resume=True, command="test")
+    assert sorted(x.name for x in p.glob("chunk-*")) == ["chunk-000000.npz", "chunk-000001.npz"]
+    toml = tmp_path / "tiny.toml"
+    for argv in (["sweep", str(toml), "--resume"], ["sweep", str(toml), "--resume", "--force"]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "saved by other code" in err[0], err
+    assert len(list(p.glob("chunk-*"))) == 2  # nothing discarded
+    assert main(["sweep", str(toml), "--force", "--no-progress"]) == 0  # starts over, says so
+    assert "discarded 2 saved parts" in capsys.readouterr().err
+    same_map(spec.output, reference)
+
+
+def test_a_map_made_by_other_code_is_not_up_to_date(tmp_path, monkeypatch, capsys):
+    spec = tiny_spec(tmp_path)
+    run_sweep(spec, command="test")
+    with xr.open_dataset(spec.output) as ds:
+        assert ds.attrs["code_digest"] == provenance.code_digest()
+    with pytest.raises(UpToDate):
+        run_sweep(spec, command="test")
+    other_code(monkeypatch)
+    with pytest.raises(InputError, match="made by this spec with other code.*--force recomputes"):
+        run_sweep(spec, command="test")
+    assert main(["sweep", str(tmp_path / "tiny.toml")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "other code" in err[0]
+    with pytest.raises(InputError, match="other code"):
+        ballsurvey.sweep(tmp_path / "tiny.toml", progress=False)
+
+
+# ---------------------------------------------------------------------------------------------
+# digests of parsed values
+@pytest.mark.parametrize("old, new", [
+    ("T = 2.0", "T = 2"),
+    ("dt = 1e-3", "dt = 0.001\nobserve_every = 4\nmethod = 'rk4'"),  # defaults written out
+    ("chunk = 2", "chunk = 5"),  # the chunk plan does not change results
+    ("phidot0 = -3.0", "phidot0 = [-3]"),
+    ("title = \"tiny\"", "title = \"tiny\"  # a comment"),
+])
+def test_spec_digest_is_of_parsed_values(tmp_path, old, new):
+    a = tiny_spec(tmp_path)
+    assert old in TINY
+    b = tiny_spec(tmp_path, text=TINY.replace(old, new))
+    assert a.digest == b.digest
+    c = tiny_spec(tmp_path, text=TINY.replace("T = 2.0", "T = 2.5"))
+    assert c.digest != a.digest
+
+
+def test_same_run_written_differently_is_up_to_date(tmp_path, capsys):
+    spec = tiny_spec(tmp_path)
+    run_sweep(spec, command="test")
+    (tmp_path / "tiny.toml").write_text(
+        TINY.replace("OUT", str(spec.output)).replace("T = 2.0", "T = 2"))
+    assert main(["sweep", str(tmp_path / "tiny.toml")]) == 0
+    assert "up to date" in capsys.readouterr().out
+
+
+# ---------------------------------------------------------------------------------------------
+# the printed resume command resumes; --resume --force keeps the parts
+def _interrupting(monkeypatch, at):
+    """The CLI's run_sweep with a Ctrl-C once chunk `at` is saved."""
+    pkg = pkg_sweep()
+    real = pkg.run_sweep
+
+    def run(spec, **kw):
+        def on_chunk(k):
+            if k == at:
+                raise KeyboardInterrupt
+        return real(spec, **{**kw, "on_chunk": on_chunk})
+    monkeypatch.setattr(pkg, "run_sweep", run)
+    return real
+
+
+def test_printed_resume_command_resumes_over_another_specs_map(tmp_path, monkeypatch, capsys,
+                                                               reference):
+    """A --force run over another spec's map, interrupted: the command it prints continues it
+    from the saved parts (they are not recomputed or deleted) and overwrites the old map."""
+    out = tmp_path / "m.nc"
+    other = tmp_path / "other.toml"
+    other.write_text(TINY.replace("OUT", str(out)).replace("T = 2.0", "T = 1.0"))
+    assert main(["sweep", str(other), "-q"]) == 0
+    toml = tmp_path / "tiny.toml"
+    toml.write_text(TINY.replace("OUT", str(out)))
+    real = _interrupting(monkeypatch, at=1)
+    monkeypatch.setattr(sys, "argv", ["ballsurvey", "sweep", str(toml), "--force", "-q"])
+    with pytest.raises(SystemExit) as stop:
+        main(sys.argv[1:])
+    assert stop.value.code == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "4 of 6 launches are saved" in err[0], err
+    cmd = err[0].split("`")[1]
+    seen = []
+    monkeypatch.setattr(pkg_sweep(), "run_sweep",
+                        lambda spec, **kw: real(spec, **{**kw, "on_chunk": seen.append}))
+    assert main(shlex.split(cmd)[1:]) == 0
+    assert seen == [2]  # only the chunk not saved
+    same_map(out, reference)
+    assert not parts_dir(out).exists()
+
+
+def pkg_sweep():
+    """The package ballsurvey.sweep (the name `ballsurvey.sweep` is the function)."""
+    return sys.modules["ballsurvey.sweep"]
+
+
+def test_resume_force_keeps_the_parts_force_alone_says_it_discards(tmp_path, reference):
+    spec, p = crashed_sweep(tmp_path, at=1)
+    notes, computed = [], []
+    run_sweep(spec, resume=True, force=True, command="test", notice=notes.append,
+              on_chunk=computed.append)
+    assert computed == [2] and not notes
+    same_map(spec.output, reference)
+    spec, p = crashed_sweep(tmp_path, "d.nc", at=0)
+    notes = []
+    run_sweep(spec, force=True, command="test", notice=notes.append)
+    assert any("discarded 1 saved part in" in n for n in notes), notes
+
+
+def test_plain_resume_over_another_specs_map_points_to_force_resume(tmp_path):
+    spec, p = crashed_sweep(tmp_path, at=1)
+    other = run_sweep(tiny_spec(tmp_path, "o.nc", text=TINY.replace("T = 2.0", "T = 1.0")),
+                      command="test")
+    shutil.copy(other, spec.output)
+    with pytest.raises(InputError, match=r"another spec.*--force --resume keeps the saved parts"):
+        run_sweep(spec, resume=True, command="test")
+    assert len(list(p.glob("chunk-*"))) == 2
+
+
+# ---------------------------------------------------------------------------------------------
+# outputs inside a sweep's working folders; leftovers of a crash after the rename
+@pytest.mark.parametrize("inside", ["big.nc.parts/q.nc", ".big.nc.tmp-abc123/q.nc",
+                                    "big.nc.parts/sub/q.nc"])
+def test_output_inside_a_sweeps_working_folder_is_refused(tmp_path, capsys, monkeypatch, inside):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "s.toml").write_text(TINY.replace("OUT", "x.nc"))
+    assert main(["sweep", "s.toml", "-o", inside]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "removed when that sweep ends" in err[0]
+    assert not (tmp_path / inside).parent.exists()
+
+
+def test_leftovers_of_a_crash_after_the_rename_are_removed(tmp_path, capsys):
+    # the state a kill -9 between the rename and the removal leaves: parts and a temp folder
+    _, p2 = crashed_sweep(tmp_path, "x.nc", at=1)
+    spec = tiny_spec(tmp_path)
+    run_sweep(spec, command="test")
+    p = parts_dir(spec.output)
+    p.mkdir()
+    for f in p2.iterdir():
+        shutil.copy(f, p / f.name)
+    tmp = tmp_path / f".{spec.output.name}.tmp-zz"
+    tmp.mkdir()
+    (tmp / spec.output.name).write_bytes(b"x")
+    assert main(["sweep", str(tmp_path / "tiny.toml")]) == 0
+    io = capsys.readouterr()
+    assert "up to date" in io.out and "removed" in io.err
+    assert not p.exists() and not tmp.exists()
+
+
+# ---------------------------------------------------------------------------------------------
+# threads: one lock around netCDF
+THREADS = textwrap.dedent("""
+    import sys, threading
+    import ballsurvey
+    spec, ref, root = sys.argv[1], sys.argv[2], sys.argv[3]
+    text = open(spec).read()
+    errors, done = [], threading.Event()
+    def run(i):
+        try:
+            for j in range(3):
+                ballsurvey.sweep(text.replace("OUT", f"{root}/t{i}-{j}.nc"), progress=False,
+                                 notice=lambda m: None)
+        except BaseException as exc:
+            errors.append(repr(exc))
+    ts = [threading.Thread(target=run, args=(i,)) for i in range(3)]
+    for t in ts:
+        t.start()
+    n = 0
+    while any(t.is_alive() for t in ts):
+        ds = ballsurvey.open_map(ref)
+        assert int(ds.label.size) == 6
+        n += 1
+    for t in ts:
+        t.join()
+    print("ok", n, errors)
+    sys.exit(1 if errors else 0)
+""")
+
+
+def test_sweeps_in_threads_with_open_map_in_the_main_thread(tmp_path):
+    """Three threads each running sweeps while the main thread opens a map again and again:
+    no crash, every map written (HDF5 is entered by one thread at a time)."""
+    ref = run_sweep(tiny_spec(tmp_path, "ref.nc"), command="test")
+    (tmp_path / "s.toml").write_text(TINY)
+    r = subprocess.run([sys.executable, "-c", THREADS, str(tmp_path / "s.toml"), str(ref),
+                        str(tmp_path)], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, (r.returncode, r.stdout[-500:], r.stderr[-2000:])
+    for i in range(3):
+        for j in range(3):
+            same_map(tmp_path / f"t{i}-{j}.nc", xr.open_dataset(ref).load())
