@@ -9,6 +9,7 @@ import sys
 import textwrap
 from pathlib import Path
 
+import numpy as np
 import pytest
 import xarray as xr
 
@@ -288,3 +289,17 @@ def test_sweeps_in_threads_with_open_map_in_the_main_thread(tmp_path):
     for i in range(3):
         for j in range(3):
             same_map(tmp_path / f"t{i}-{j}.nc", xr.open_dataset(ref).load())
+
+
+# ---------------------------------------------------------------------------------------------
+# find skips what it cannot take
+def test_find_skips_bracket_points_on_the_flat_face():
+    """A theta0 bracket reaching onto the flat face (below -31.8 deg for the paper's ball): the
+    points there have no value; the root inside the model is found and integrates as a square."""
+    from ballsurvey.find import _turn, find_launch
+
+    launch = dict(theta0_deg=None, thetadot0=0.0, chidot0=4.0, phidot0=-3.0)
+    assert np.isnan(_turn(launch, "theta0_deg", -66.3, ballsurvey.Ball.paper()))
+    sols = find_launch(4, launch, "theta0_deg", (-70.0, 50.0), scan=40)
+    assert len(sols) == 1 and sols[0].label == "square"
+    assert abs(sols[0].value - 1.4899) < 1e-3 and abs(sols[0].n_sides - 4) < 1e-6
