@@ -16,7 +16,7 @@ import xarray as xr
 import ballsurvey
 from ballsurvey.cli import main
 from ballsurvey.limits import InputError
-from ballsurvey.sweep import parts, provenance, run_sweep
+from ballsurvey.sweep import load_spec, parts, provenance, run_sweep
 from ballsurvey.sweep.engine import UpToDate, parts_dir
 from test_reliability import TINY, crashed_sweep, same_map, tiny_spec
 
@@ -303,3 +303,48 @@ def test_find_skips_bracket_points_on_the_flat_face():
     sols = find_launch(4, launch, "theta0_deg", (-70.0, 50.0), scan=40)
     assert len(sols) == 1 and sols[0].label == "square"
     assert abs(sols[0].value - 1.4899) < 1e-3 and abs(sols[0].n_sides - 4) < 1e-6
+
+
+# ---------------------------------------------------------------------------------------------
+# one line for inputs that are not what they claim
+def test_open_map_refuses_a_netcdf_that_is_not_a_map(tmp_path, capsys):
+    def fake(name, label, **attrs):
+        ds = xr.Dataset({"label": ("x", label)})
+        ds.label.attrs.update(attrs)
+        ds.to_netcdf(tmp_path / name)
+        return str(tmp_path / name)
+
+    for path, words in ((fake("f.nc", np.array([1.5, 2.0])), "not ballsurvey's label codes"),
+                        (fake("i.nc", np.array([1, 2], "i1"), flag_meanings="a b"),
+                         "not ballsurvey's label codes"),
+                        (fake("w.nc", np.array([1, 2], "i1"), flag_meanings="circle square"),
+                         "lacks the launch conditions")):
+        with pytest.raises(InputError, match=words):
+            ballsurvey.open_map(path)
+        for argv in (["query", path, "--shape", "square"], ["gallery", path]):
+            assert main(argv) == 2
+            err = capsys.readouterr().err.strip().splitlines()
+            assert len(err) == 1 and words in err[0], err
+
+
+def test_point_names_must_be_printable(tmp_path):
+    text = TINY.split("[launch]")[0] + "".join(
+        f'[[points]]\nname = "{n}"\ntheta0_deg = 1.0\nthetadot0 = 0.0\nchidot0 = 3.0\n'
+        f'phidot0 = -3.0\n' for n in ("a", "a\\u0000")) + "[run]\nT = 1.0\n"
+    with pytest.raises(InputError, match="name: must be printable"):
+        load_spec("p.toml", text=text)
+
+
+def test_workers_in_an_unguarded_script_say_what_to_do(monkeypatch):
+    """A worker process re-importing a script that starts a sweep with workers at its top level
+    stops with one line naming the main guard (and the parent's run says the same)."""
+    pytest.importorskip("distributed")
+    import multiprocessing
+
+    from ballsurvey.sweep.executors import dask_client
+
+    monkeypatch.setattr(multiprocessing.current_process(), "_inheriting", True, raising=False)
+    with pytest.raises(SystemExit, match="__name__ == .__main__.") as stop:
+        with dask_client(None, 2):
+            pass
+    assert "\n" not in str(stop.value.code)

@@ -25,6 +25,7 @@ import numpy as np
 import xarray as xr
 
 from . import limits
+from .axes import LAUNCH_AXES
 from .classify.labels import CODE, LABELS
 from .limits import InputError
 from .store import decode_label, netcdf_lock
@@ -96,7 +97,7 @@ def _spec_text(spec) -> tuple[str, str, bool]:
         raise InputError(f"a spec is a path, TOML text or a dict, got {type(spec).__name__}")
     try:
         names_file = "file" in tomllib.loads(text).get("output", {})
-    except (tomllib.TOMLDecodeError, AttributeError):
+    except (ValueError, AttributeError):  # TOMLDecodeError is a ValueError
         names_file = True  # load_spec says what is wrong
     return text, source, names_file
 
@@ -118,6 +119,10 @@ def sweep(spec, *, output=None, resume: bool = False, force: bool = False,
     from .sweep.engine import UpToDate, check_output_path, dask_client, run_sweep
     from .sweep.parts import existing_output, tidy_finished
 
+    if workers is not None:
+        limits.workers(workers, "workers")
+    if scheduler is not None:
+        limits.scheduler(scheduler, "scheduler")
     text, source, names_file = _spec_text(spec)
     s = load_spec(source, text=text)
     if output is not None:
@@ -187,6 +192,17 @@ def open_map(path, load: bool | None = None) -> xr.Dataset:
         if "label" not in ds:
             ds.close()
             raise InputError(f"{path} has no 'label' variable: not a ballsurvey map")
+        words = str(ds.label.attrs.get("flag_meanings", "")).split()
+        if (not np.issubdtype(ds.label.dtype, np.integer) or not words
+                or not set(words) <= set(LABELS)):
+            ds.close()
+            raise InputError(f"{path}: its 'label' variable is not ballsurvey's label codes "
+                             "(integers with flag_meanings naming label words): not a map")
+        missing = [k for k in LAUNCH_AXES if k not in ds.variables]
+        if missing:
+            ds.close()
+            raise InputError(f"{path} lacks the launch conditions {', '.join(missing)}: not a "
+                             "ballsurvey map")
         if load is None:
             load = p.stat().st_size < 256 * 2**20
         if load:

@@ -65,13 +65,38 @@ def _out_file(name, value, suffix):
     return p
 
 
+def _check_bench(args):
+    """Every bench option by the shared rules, before anything is compiled or timed."""
+    from . import limits
+
+    modes = [f for f in ("map", "spec", "scaling", "period", "headline")
+             if getattr(args, f) is not None]
+    if len(modes) > 1:
+        raise UserError(f"--{modes[0]} and --{modes[1]} are two benchmarks: give one")
+    for name in ("map", "period", "headline"):
+        _opt(f"--{name}", getattr(args, name), integer=True, lo=1, hi=10**4)
+    _opt("--launches", args.launches, integer=True, lo=1, hi=10**8)
+    _opt("--steps", args.steps, integer=True, lo=1, hi=10**8)
+    _opt("--repeats", args.repeats, integer=True, lo=1, hi=1000)
+    _opt("--block", args.block, integer=True, lo=1, hi=limits.MAX_BLOCK)
+    _opt("--observe-every", args.observe_every, integer=True, lo=1, hi=limits.MAX_OBSERVE_EVERY)
+    _opt("--dt", args.dt, positive=True)
+    _opt("--T", args.T, positive=True, hi=limits.MAX_DURATION_S)
+    for name in ("threads", "workers"):
+        _opt(f"--{name}", getattr(args, name), integer=True, lo=1, hi=limits.MAX_WORKERS)
+    for name in ("spec", "scaling"):
+        if getattr(args, name) == "":
+            raise UserError(f"--{name}: give a spec file (.toml)")
+
+
 def _cmd_bench(args):
     from .bench import run_bench, run_map_bench
 
+    _check_bench(args)
     if not args.scaling and (args.threads is not None or args.workers is not None):
         raise InputError("--threads and --workers go with --scaling SPEC.toml")
 
-    if args.map:
+    if args.map is not None:
         run_map_bench(n=args.map, T=args.T, dt=args.dt)
         return
     if args.spec:
@@ -84,12 +109,12 @@ def _cmd_bench(args):
 
         run_scaling(args.scaling, threads=args.threads, workers=args.workers)
         return
-    if args.period:
+    if args.period is not None:
         from .bench import run_period_bench
 
         run_period_bench(n=args.period, T=args.T)
         return
-    if args.headline:
+    if args.headline is not None:
         from .bench import run_headline
 
         method = args.method or ("rk4" if args.backend == "cuda" else "dop853")
@@ -137,6 +162,8 @@ def _cmd_sweep(args):
         chunk = limits.chunk_size(chunk, "--chunk")
     if args.workers is not None:
         limits.workers(args.workers)
+    if args.scheduler is not None:
+        limits.scheduler(args.scheduler)
     wait_s = _opt("--dask-timeout", args.dask_timeout, positive=True, hi=86400)
     spec = load_spec(args.spec, run={"backend": args.backend} if args.backend else None)
     if out is not None:
@@ -359,6 +386,7 @@ def _cmd_gallery(args):
     from .gallery import draw_gallery
 
     _opt("--per-label", args.per_label, integer=True, lo=1, hi=100)
+    _opt("--seed", args.seed, integer=True, lo=0, hi=2**32 - 1)
     _opt("--T", args.T, positive=True, hi=1e6)
     ds = _open_map(args.result)  # a folder or '.' is refused here, before naming the output
     out = _out_file("-o/--output", args.output or str(Path(args.result).with_name(

@@ -15,6 +15,10 @@ from ..limits import RunError
 from .compute import compute_chunk, concat, n_launches
 from .spec import Spec
 
+#: what a script that starts local workers without a main guard is told
+UNGUARDED_HINT = ("in a script, run a sweep with workers from under "
+                  "`if __name__ == \"__main__\":` (worker processes import the script again)")
+UNGUARDED = f"ballsurvey: a dask worker process is importing the script: {UNGUARDED_HINT}"
 #: default bounded wait (s) for a dask scheduler or for workers to (re)appear
 DASK_WAIT_S = 30.0
 #: dask tasks per worker thread over the launches to do (so that no thread idles at the end
@@ -213,12 +217,22 @@ def dask_client(scheduler: str | None = None, workers: int | None = None,
             raise RunError(f"cannot reach the dask scheduler {scheduler} within {wait_s:g} s "
                            f"({type(exc).__name__})") from None
     else:
+        import multiprocessing
+
+        if getattr(multiprocessing.current_process(), "_inheriting", False):
+            # a worker process starting re-runs the script's top level: unguarded, it would
+            # start a cluster of its own; it stops, and the run below says why
+            raise SystemExit(UNGUARDED)
         # no dashboard, and the scheduler's small HTTP server on a free port (by default it
         # takes 8787 and warns when that is busy); the cluster's own logs only for errors
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                               host="127.0.0.1", dashboard_address=None,
-                               scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
-                               silence_logs=logging.ERROR)
+        try:
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                   host="127.0.0.1", dashboard_address=None,
+                                   scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+                                   silence_logs=logging.ERROR)
+        except Exception as exc:  # noqa: BLE001 - distributed raises many kinds; one line
+            raise RunError(f"the local dask cluster of {workers} workers did not start "
+                           f"({type(exc).__name__}: {str(exc)[:120]}); {UNGUARDED_HINT}") from None
         client = Client(cluster)
         # a Ctrl-C at the terminal reaches every process of the group: the workers of this
         # cluster leave it to this process, which keeps what came back and closes them (a

@@ -240,7 +240,7 @@ def _override_run(src, text: str, doc: dict, run: dict) -> tuple[str, dict]:
         new_text = "\n".join(lines)
         try:
             new_doc = tomllib.loads(new_text)
-        except tomllib.TOMLDecodeError:
+        except ValueError:  # TOMLDecodeError is one
             new_doc = None
 
         def canon(d):  # NaN equals NaN here: validation, not this check, refuses it
@@ -270,6 +270,8 @@ def load_spec(path, *, text: str | None = None, run: dict | None = None) -> Spec
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SpecError(f"{src}: not valid TOML: {exc}") from None
+    except ValueError as exc:  # an integer of more digits than Python converts
+        raise SpecError(f"{src}: not a usable spec: {str(exc).split(';')[0]}") from None
     if run:
         text, doc = _override_run(src, text, doc, run)
     _unknown(src, "", doc, TOP_KEYS)
@@ -327,6 +329,8 @@ def load_spec(path, *, text: str | None = None, run: dict | None = None) -> Spec
             name = pt.get("name", f"point{i + 1}")
             if not isinstance(name, str) or not name:
                 _err(src, f"[[points]] #{i + 1} name", "must be a non-empty string")
+            if not name.isprintable():  # netCDF ends a string at NUL: "a" and "a\0" are one
+                _err(src, f"[[points]] #{i + 1} name", f"must be printable text, got {name!r}")
             cols["name"].append(name)
             for k in LAUNCH_AXES:
                 if k not in pt:
