@@ -348,3 +348,89 @@ def test_workers_in_an_unguarded_script_say_what_to_do(monkeypatch):
         with dask_client(None, 2):
             pass
     assert "\n" not in str(stop.value.code)
+
+
+# ---------------------------------------------------------------------------------------------
+# Ctrl-C is one line from the first instant
+IMPORT_INTERRUPTED = textwrap.dedent("""
+    import runpy, sys
+    class CtrlC:  # a Ctrl-C while the package imports its dependencies
+        def find_spec(self, name, path=None, target=None):
+            if name == "xarray":
+                raise KeyboardInterrupt
+    sys.meta_path.insert(0, CtrlC())
+    if sys.argv[1] == "script":
+        sys.argv = ["/usr/bin/ballsurvey", "--version"]
+        from ballsurvey.cli import main
+    else:
+        sys.argv = ["-m", "--version"]
+        runpy._run_module_as_main("ballsurvey")
+""")
+
+
+@pytest.mark.parametrize("how", ["script", "module"])
+def test_ctrl_c_while_the_package_imports_is_one_line(how):
+    r = subprocess.run([sys.executable, "-c", IMPORT_INTERRUPTED, how], capture_output=True,
+                       text=True, timeout=120)
+    assert r.returncode == 130 and r.stderr == "ballsurvey: interrupted\n", r.stderr
+
+
+def test_ctrl_c_while_local_workers_start_is_one_line(tmp_path, big_spec_text):
+    """Ctrl-C at a terminal (the whole process group) while the local cluster starts: the
+    starting workers ignore it (a traceback each before), and so does the run for those seconds;
+    a Ctrl-C once launches run ends it with one line."""
+    pytest.importorskip("distributed")
+    import os
+    import re
+    import signal
+    import threading
+
+    (tmp_path / "big.toml").write_text(big_spec_text)
+    proc = subprocess.Popen([sys.executable, "-m", "ballsurvey", "sweep", "big.toml",
+                             "--workers", "2", "-v", "--no-progress"], cwd=tmp_path,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    killer = threading.Timer(300, lambda: os.killpg(proc.pid, signal.SIGKILL))
+    killer.start()
+    try:
+        first = proc.stderr.readline()  # "... launches (...) -> ...": the cluster starts next
+        assert "launches" in first, first
+        threading.Event().wait(1.0)
+        os.killpg(proc.pid, signal.SIGINT)
+        for line in proc.stderr:
+            m = re.search(r"(\d+) of 2000 launches done", line)
+            if m and int(m.group(1)) > 0:
+                break
+            assert "Traceback" not in line and "KeyboardInterrupt" not in line, line
+        os.killpg(proc.pid, signal.SIGINT)
+        err = proc.stderr.read()
+        proc.wait()
+    finally:
+        killer.cancel()
+    lines = err.strip().splitlines()
+    assert proc.returncode == 130 and len(lines) == 1 and "interrupted;" in lines[0], err
+
+
+def test_ctrl_c_during_assembly_keeps_every_part_and_says_resume(tmp_path, monkeypatch, capsys,
+                                                                 reference):
+    from ballsurvey.sweep import engine
+
+    spec = tiny_spec(tmp_path)
+    real = engine._write_netcdf
+
+    def interrupted(*a, **kw):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(engine, "_write_netcdf", interrupted)
+    monkeypatch.setattr(sys, "argv", ["ballsurvey", "sweep", str(tmp_path / "tiny.toml")])
+    with pytest.raises(SystemExit) as stop:
+        main(sys.argv[1:] + ["--no-progress"])
+    assert stop.value.code == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "6 of 6 launches are saved" in err[0] and "--resume" in err[0], err
+    assert not spec.output.exists() and len(list(parts_dir(spec.output).glob("chunk-*"))) == 3
+    assert not list(tmp_path.glob(".*tmp*"))  # the half-written file went with its folder
+    monkeypatch.setattr(engine, "_write_netcdf", real)
+    report = {}
+    run_sweep(spec, resume=True, command="test", report=report)
+    assert report["computed"] == 0
+    same_map(spec.output, reference)

@@ -212,10 +212,22 @@ def _cmd_sweep(args):
             written = run_sweep(spec, resume=args.resume, force=args.force, client=client,
                                 progress=progress, command=command, dask_wait_s=wait_s,
                                 notice=notice, on_unit=on_unit, report=report)
-    except SweepInterrupted as exc:
+    except KeyboardInterrupt as exc:  # the run's own account, or one of the saved parts
         again = " ".join(shlex.quote(a) for a in sys.argv[1:] if a != "--resume")
-        print(f"ballsurvey sweep: interrupted; {exc.kept} of {exc.total} launches are saved in "
-              f"{exc.parts}: run `ballsurvey {again} --resume` to continue", file=sys.stderr)
+        if isinstance(exc, SweepInterrupted):
+            kept = f"{exc.kept} of {exc.total} launches are saved in {exc.parts}"
+        else:  # before the run started (a cluster starting) or after it ended
+            from .sweep.engine import parts_dir
+
+            parts = parts_dir(spec.output)
+            n = len(list(parts.glob("*.npz"))) if parts.is_dir() else 0
+            if not n:
+                print("ballsurvey sweep: interrupted before any launch was saved",
+                      file=sys.stderr)
+                raise SystemExit(130) from None
+            kept = f"the {n} saved parts in {parts} are kept"
+        print(f"ballsurvey sweep: interrupted; {kept}: run `ballsurvey {again} --resume` to "
+              "continue", file=sys.stderr)
         raise SystemExit(130) from None
     if verbosity < 0:
         print(f"wrote {written}")

@@ -307,8 +307,12 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
                 _write_part(parts, k, lo, hi, spec.digest, result)
                 return read_part(parts, k, spec, lo, hi)
 
-        out = assemble(spec, parts, chunks, command, get_part)
-        shutil.rmtree(parts)
+        try:
+            out = assemble(spec, parts, chunks, command, get_part)
+        except KeyboardInterrupt:  # every chunk is saved: only the assembly is left to do
+            raise SweepInterrupted(parts, spec.n_launches, spec.n_launches) from None
+        with _NoSigint():
+            shutil.rmtree(parts)
         if report is not None:
             report.update(wall_s=time.perf_counter() - t_start, compile_s=compile_s,
                           computed=spec.n_launches - n_resumed, resumed=n_resumed)

@@ -207,7 +207,7 @@ def dask_client(scheduler: str | None = None, workers: int | None = None,
     if not scheduler and not workers:
         yield None
         return
-    from distributed import Client, LocalCluster
+    from distributed import Client
 
     cluster = None
     if scheduler:
@@ -217,30 +217,64 @@ def dask_client(scheduler: str | None = None, workers: int | None = None,
             raise RunError(f"cannot reach the dask scheduler {scheduler} within {wait_s:g} s "
                            f"({type(exc).__name__})") from None
     else:
-        import multiprocessing
+        # a Ctrl-C at the terminal reaches every process of the group: worker processes that
+        # are starting (importing) would print a traceback each. They start with SIGINT
+        # ignored, which they inherit; this process ignores it for those seconds too.
+        with _ignoring_sigint():
+            cluster, client = _local_cluster(workers)
+    try:
+        yield client
+    finally:
+        with _ignoring_sigint():  # closing is not cut short into a traceback
+            client.close()
+            if cluster is not None:
+                cluster.close()
 
-        if getattr(multiprocessing.current_process(), "_inheriting", False):
-            # a worker process starting re-runs the script's top level: unguarded, it would
-            # start a cluster of its own; it stops, and the run below says why
-            raise SystemExit(UNGUARDED)
-        # no dashboard, and the scheduler's small HTTP server on a free port (by default it
-        # takes 8787 and warns when that is busy); the cluster's own logs only for errors
-        try:
-            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                   host="127.0.0.1", dashboard_address=None,
-                                   scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
-                                   silence_logs=logging.ERROR)
-        except Exception as exc:  # noqa: BLE001 - distributed raises many kinds; one line
-            raise RunError(f"the local dask cluster of {workers} workers did not start "
-                           f"({type(exc).__name__}: {str(exc)[:120]}); {UNGUARDED_HINT}") from None
+
+@contextmanager
+def _ignoring_sigint():
+    """SIGINT ignored in this process (and inherited so by processes started meanwhile); main
+    thread only, else nothing changes."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
+def _local_cluster(workers: int):
+    """(cluster, client): a local cluster of `workers` single-threaded processes."""
+    import multiprocessing
+
+    from distributed import Client, LocalCluster
+
+    if getattr(multiprocessing.current_process(), "_inheriting", False):
+        # a worker process starting re-runs the script's top level: unguarded, it would
+        # start a cluster of its own; it stops, and the run below says why
+        raise SystemExit(UNGUARDED)
+    # no dashboard, and the scheduler's small HTTP server on a free port (by default it
+    # takes 8787 and warns when that is busy); the cluster's own logs only for errors
+    try:
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                               host="127.0.0.1", dashboard_address=None,
+                               scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+                               silence_logs=logging.ERROR)
+    except Exception as exc:  # noqa: BLE001 - distributed raises many kinds; one line
+        raise RunError(f"the local dask cluster of {workers} workers did not start "
+                       f"({type(exc).__name__}: {str(exc)[:120]}); {UNGUARDED_HINT}") from None
+    try:
         client = Client(cluster)
         # a Ctrl-C at the terminal reaches every process of the group: the workers of this
         # cluster leave it to this process, which keeps what came back and closes them (a
         # worker plugin: a worker started again after a loss ignores it too)
         client.register_plugin(_ignore_interrupts_plugin())
-    try:
-        yield client
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+    except BaseException:
+        cluster.close()
+        raise
+    return cluster, client
