@@ -87,7 +87,7 @@ BASE = {"launch": {"theta0_deg": "5.0", "thetadot0": "0.0", "chidot0": "4.0", "p
 def spec_text(**sections):
     doc = {s: dict(kv) for s, kv in BASE.items()}
     for sec, kv in sections.items():
-        doc[sec].update(kv)
+        doc.setdefault(sec, {}).update(kv)
     return "".join(f"[{s}]\n" + "".join(f"{k} = {v}\n" for k, v in kv.items())
                    for s, kv in doc.items())
 
@@ -115,6 +115,13 @@ SPEC_CASES = [  # (sections, first words of the message after "<spec file>: ")
     ({"run": {"block": "-1"}}, "[run] block: must be >= 1"),
     ({"run": {"T": "1e6", "dt": "1e-7"}}, "[run] dt: T/dt = 1e+13 steps per launch"),
     ({"run": {"T": "inf"}}, "[run] T: must be finite"),
+    ({"run": {"mode": "'period'", "cycles": "1"}}, "[run] cycles: period mode integrates 1"),
+    ({"ball": {"a": "1e300", "c": "0.0", "M": "0.1", "A": "1e-5", "B": "1e-5"}},
+     "[ball] a: must be within 0.0001..100 m"),
+    ({"ball": {"a": "0.025", "c": "0.0", "M": "0.1", "A": "1e-300", "B": "1e-300"}},
+     "[ball] A: A/(M a^2) must be within"),
+    ({"ball": {"a": "0.025", "cut_height": "0.005", "M": "0.1", "g": "1e300"}},
+     "[ball] g: must be within"),
     ({"run": {"T": "1" * 320}}, "[run] T: must be within +-1.8e308"),
     ({"run": {"T": "1" * 5000}}, "not a usable spec: Exceeds the limit (4300 digits)"),
     ({"run": {"T": "1e308", "dt": "1e300", "method": "'dop853'"}}, "[run] T: must be <= 1e+06"),

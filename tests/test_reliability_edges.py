@@ -2,6 +2,7 @@
 threads and netCDF, outputs inside a sweep's own folders, digests of parsed values. Tiny maps
 (T = 2 s, dt = 1e-3 s) keep it quick."""
 import json
+import math
 import shlex
 import shutil
 import subprocess
@@ -434,3 +435,80 @@ def test_ctrl_c_during_assembly_keeps_every_part_and_says_resume(tmp_path, monke
     run_sweep(spec, resume=True, command="test", report=report)
     assert report["computed"] == 0
     same_map(spec.output, reference)
+
+
+# ---------------------------------------------------------------------------------------------
+# failures outside the input: one line naming the file and what is kept
+def test_disk_full_while_saving_a_part_names_it_and_what_is_kept(tmp_path, monkeypatch, capsys,
+                                                                  reference):
+    import errno
+
+    from ballsurvey.sweep import engine
+
+    spec = tiny_spec(tmp_path)
+    real = engine._write_part
+
+    def full(parts, k, *a):
+        if k == 1:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real(parts, k, *a)
+    monkeypatch.setattr(engine, "_write_part", full)
+    assert main(["sweep", str(tmp_path / "tiny.toml"), "--no-progress"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert "chunk-000001.npz: No space left on device; 2 of 6 launches are kept" in err[0]
+    assert "--resume" in err[0]
+    monkeypatch.setattr(engine, "_write_part", real)
+    report = {}
+    run_sweep(spec, resume=True, command="test", report=report)
+    assert report["resumed"] == 2
+    same_map(spec.output, reference)
+
+
+@pytest.mark.parametrize("argv", [
+    ["path", "--theta0-deg", "1", "--chidot0", "3", "--phidot0", "-3", "-o", "/proc/x.png"],
+    ["plot", "m.nc", "-o", "afile/x.png"],
+    ["paper", "-o", "afile/figs"],
+    ["accuracy", "-o", "afile"],
+    ["sweep", "s.toml", "-o", "nowhere/../b/q.nc"],
+])
+def test_unwritable_output_is_refused_before_any_work(tmp_path, capsys, monkeypatch, argv):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "afile").write_text("")
+    (tmp_path / "s.toml").write_text(TINY.replace("OUT", "x.nc"))
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and ("-o/--output" in err[0] or "cannot write the output" in err[0]), err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile", "s.toml"]
+
+
+# ---------------------------------------------------------------------------------------------
+# small silent ones
+def test_a_whole_sphere_has_c_plus_zero():
+    spec = load_spec("g.toml", text=TINY.replace("OUT", "x.nc").replace(
+        'title = "tiny"', 'title = "tiny"\n[ball]\na = 0.03\ncut_height = 0.0\nM = 0.1'))
+    assert spec.ball.c == 0.0 and math.copysign(1.0, spec.ball.c) == 1.0
+
+
+def test_near_vertical_is_unknown_without_theta_max(tmp_path):
+    text = TINY.replace("OUT", str(tmp_path / "v.nc")) + '\nvariables = ["n_sides"]\n'
+    ds = ballsurvey.sweep(text, progress=False, notice=lambda m: None)
+    assert "theta_max_deg" not in ds
+    word = str(ds.ballsurvey.labels.values.ravel()[0])
+    df = ballsurvey.query(ds, shape=word)
+    assert len(df) and df.near_vertical.isna().all()
+
+
+def test_summary_of_a_dop853_map_reports_no_fallback(tmp_path, reference):
+    """dop853 integrates every launch in the fixed frame by design: no 'integrated again' line
+    (it counted them all); an rk4 map gives the line."""
+    from ballsurvey.cli import sweep_summary
+
+    for method, line in (("rk4", True), ("dop853", False)):
+        path = tmp_path / f"{method}.nc"
+        ds = reference.copy()
+        ds.attrs["run_method"] = method
+        if method == "dop853":
+            ds["formulation"] = ds.formulation * 0 + 1
+        ds.to_netcdf(path)
+        assert ("integrated again in the fixed frame" in sweep_summary(path, 6, {})) == line

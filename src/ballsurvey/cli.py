@@ -62,7 +62,28 @@ def _out_file(name, value, suffix):
         raise UserError(f"{name}: must be a file name ending in {suffix}, got {value!r}")
     if p.is_dir():
         raise UserError(f"{name}: {value} is a folder; give a file name ending in {suffix}")
+    _check_writable(name, p.parent)
     return p
+
+
+def _check_writable(name, folder) -> None:
+    """Refuse (one line, exit 2, before any work) an output folder that cannot be written: the
+    nearest folder of it that exists must take a new file (tried, and removed at once)."""
+    import os
+    import tempfile
+    from pathlib import Path
+
+    d = Path(os.path.abspath(folder))
+    while not d.exists() and d != d.parent:
+        d = d.parent
+    if not d.is_dir():
+        raise UserError(f"{name}: {d} is a file, not a folder")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".ballsurvey-probe-", dir=d)
+    except OSError as exc:
+        raise UserError(f"{name}: cannot write in {d}: {exc.strerror}") from None
+    os.close(fd)
+    os.unlink(probe)
 
 
 def _check_bench(args):
@@ -275,6 +296,7 @@ def sweep_summary(path, n_launches: int, report: dict) -> str:
     import xarray as xr
 
     from .classify.labels import LABELS, SHAPES
+    from .integrate.tableaus import LANE_ADAPTIVE
 
     wall = report.get("wall_s", float("nan"))
     comp = report.get("compile_s", 0.0)
@@ -291,7 +313,10 @@ def sweep_summary(path, n_launches: int, report: dict) -> str:
 
     with netcdf_lock(), xr.open_dataset(path) as ds:
         codes = ds.label.values.ravel()
-        fallback = int((ds.formulation.values == 1).sum()) if "formulation" in ds else None
+        # the lane methods (dop853) integrate every launch in the fixed frame: no fallback
+        by_design = ds.attrs.get("run_method") in LANE_ADAPTIVE
+        fallback = (int((ds.formulation.values == 1).sum())
+                    if "formulation" in ds and not by_design else None)
         title = ds.attrs.get("title", "")
         points = "launch" in ds.dims  # named points: a table, no plot
     counts = np.bincount(codes[(codes >= 0) & (codes < len(LABELS))].astype(int),
@@ -419,6 +444,7 @@ def _cmd_accuracy(args):
         return
     from .accuracy import run_accuracy
 
+    _check_writable("-o/--output", args.output)
     run_accuracy(args.output, quick=args.quick)
 
 
@@ -565,6 +591,7 @@ def _write_refined(out, res, args) -> None:
 def _cmd_paper(args):
     from .paper import reproduce
 
+    _check_writable("-o/--output", args.output)
     reproduce(args.output)
 
 

@@ -193,6 +193,29 @@ def workers(n, name: str = "--workers") -> int:
     return number(name, n, integer=True, lo=1, hi=MAX_WORKERS)
 
 
+#: a ball a map can be made of: radius (m), gravity (m s-2), mass (kg), and the moments of
+#: inertia about G over M a^2 (a rigid body inside the sphere has them below 4; far below 1e-4
+#: the spin equations are stiff beyond any step). Outside them the launches only overflow.
+BALL_RANGES = {"a": (1e-4, 100.0, "m"), "g": (1e-2, 1000.0, "m s-2"), "M": (1e-6, 1e6, "kg")}
+INERTIA_RATIO = (1e-4, 4.0)
+
+
+def ball(values: dict, where: str = "ball") -> None:
+    """Check a ball's parameters (a dict of a, c, M, A, B, g, cut_height in SI) against
+    `BALL_RANGES` and `INERTIA_RATIO`."""
+    for k, (lo, hi, unit) in BALL_RANGES.items():
+        v = values[k]
+        if not lo <= v <= hi:
+            raise InputError(f"{where} {k}: must be within {lo:g}..{hi:g} {unit}, got {v!r}")
+    scale = values["M"] * values["a"] ** 2
+    lo, hi = INERTIA_RATIO
+    for k in ("A", "B"):
+        r = values[k] / scale
+        if not lo <= r <= hi:
+            raise InputError(f"{where} {k}: {k}/(M a^2) must be within {lo:g}..{hi:g}, got "
+                             f"{r:.3g} ({k} = {values[k]!r} kg m2)")
+
+
 #: dask schedulers a run can reach: protocol://host:port (no protocol: tcp)
 SCHEDULER_PROTOCOLS = ("tcp", "tls", "ws", "wss", "ucx")
 

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..limits import InputError
+from ..limits import InputError, RunError
 from ..store import RESULT_VARIABLES
 from .plan import plan_chunks
 from .provenance import code_digest
@@ -468,7 +468,11 @@ def prepare_output(spec: Spec, *, resume: bool, force: bool, notice=None) -> tup
                                   "it or --force to start over")
     parts.mkdir(exist_ok=True)
     if not (parts / MANIFEST).exists():
-        _write_manifest(parts, spec, len(plan_chunks(spec.shape, spec.chunk)))
+        try:
+            _write_manifest(parts, spec, len(plan_chunks(spec.shape, spec.chunk)))
+        except OSError as exc:
+            raise RunError(f"cannot write {parts / MANIFEST}: {exc.strerror or exc}; nothing "
+                           "was computed") from None
     chunks = plan_chunks(spec.shape, spec.chunk)
     done = set()
     for p in sorted(parts.glob("chunk-*.npz")):

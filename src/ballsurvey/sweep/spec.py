@@ -282,6 +282,7 @@ def load_spec(path, *, text: str | None = None, run: dict | None = None) -> Spec
     if not isinstance(title, str):
         _err(src, "title", "must be a string")
     base_ball = _ball(src, doc.get("ball", {"preset": "paper"}))
+    _limit(src, limits.ball, base_ball.as_dict(), "[ball]")
 
     # ---- launches --------------------------------------------------------------------------
     if ("launch" in doc) == ("points" in doc):
@@ -314,6 +315,7 @@ def load_spec(path, *, text: str | None = None, run: dict | None = None) -> Spec
                 b = replace(base_ball, **dict(zip(ball_axes, map(float, combo))))
             except ValueError as exc:
                 _err(src, "[launch] " + "/".join(ball_axes), f"gives an invalid ball: {exc}")
+            _limit(src, limits.ball, b.as_dict(), "[launch] " + "/".join(ball_axes) + " gives")
             flat.append(math.degrees(b.flat_face_theta_rad))
         _check_tilts(src, "[launch] theta0_deg", axes["theta0_deg"], flat)
     else:
@@ -388,6 +390,10 @@ def load_spec(path, *, text: str | None = None, run: dict | None = None) -> Spec
         thresholds = Thresholds.from_mapping(classify)
     except ValueError as exc:
         raise SpecError(f"{src}: {exc}") from None
+    if mode == "period" and cycles < thresholds.min_cycles:
+        _err(src, "[run] cycles", f"period mode integrates {cycles} theta cycle(s), fewer than "
+             f"the {thresholds.min_cycles} a label needs ([classify] min_cycles): every launch "
+             "would be unresolved")
 
     out = doc.get("output", {})
     _unknown(src, "[output] ", out, OUTPUT_KEYS)
