@@ -519,3 +519,15 @@ def test_summary_of_a_dop853_map_reports_no_fallback(tmp_path, reference):
             ds["formulation"] = ds.formulation * 0 + 1
         ds.to_netcdf(path)
         assert ("integrated again in the fixed frame" in sweep_summary(path, 6, {})) == line
+
+
+@pytest.mark.parametrize("resume", [False, True])
+def test_parts_folder_killed_before_its_manifest_is_not_in_the_way(tmp_path, reference, resume):
+    """kill -9 between making the parts folder and writing its manifest: nothing was saved, so
+    the folder (empty, or holding the manifest's temporary) does not block a run or a resume."""
+    spec = tiny_spec(tmp_path)
+    p = parts_dir(spec.output)
+    p.mkdir()
+    (p / ".manifest-x1y2.tmp").write_bytes(b"{")
+    run_sweep(spec, resume=resume, command="test")
+    same_map(spec.output, reference)

@@ -336,7 +336,8 @@ def check_output_path(out: Path) -> None:
         raise InputError(f"output {str(out)!r}: must be a file name ending in .nc")
     if out.is_dir():
         raise OutputRefused(f"output {out} is a directory; give a file name ending in .nc")
-    for d in Path(os.path.abspath(out)).parents:  # a sweep's own folders: removed when it ends
+    ancestors = [*Path(os.path.abspath(out)).parents, *out.resolve().parents]  # links too
+    for d in ancestors:  # a sweep's own folders: removed when it ends
         if d.name.endswith(".nc" + PARTS_SUFFIX) or re.match(r"^\..+\.nc\.tmp-", d.name):
             raise OutputRefused(f"output {out} is inside {d}, a sweep's working folder that is "
                                 "removed when that sweep ends; write it elsewhere")
@@ -454,6 +455,8 @@ def prepare_output(spec: Spec, *, resume: bool, force: bool, notice=None) -> tup
         _tidy_finished(spec, notice)
         raise
     _clean_leftovers(out, parts)
+    if parts.is_dir() and not parts.is_symlink() and not any(parts.iterdir()):
+        parts.rmdir()  # made by a run killed before it wrote anything in it: nothing to resume
     if parts.exists():
         if resume:
             man = _check_manifest(parts, spec)
