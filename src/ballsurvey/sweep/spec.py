@@ -315,7 +315,8 @@ def load_spec(path, *, text: str | None = None, run: dict | None = None) -> Spec
                 b = replace(base_ball, **dict(zip(ball_axes, map(float, combo))))
             except ValueError as exc:
                 _err(src, "[launch] " + "/".join(ball_axes), f"gives an invalid ball: {exc}")
-            _limit(src, limits.ball, b.as_dict(), "[launch] " + "/".join(ball_axes) + " gives")
+            _limit(src, limits.ball, b.as_dict(),
+                   "[launch] " + "/".join(ball_axes) + " gives a ball whose")
             flat.append(math.degrees(b.flat_face_theta_rad))
         _check_tilts(src, "[launch] theta0_deg", axes["theta0_deg"], flat)
     else:
