@@ -48,12 +48,12 @@ def _package_copy(tmp_path):
 
 def _digest_of(monkeypatch, package):
     monkeypatch.setattr(provenance, "PACKAGE", package)
-    provenance.compute_modules.cache_clear()
+    provenance._module_code.cache_clear()
     provenance.code_digest.cache_clear()
     try:
         return provenance.code_digest()
     finally:
-        provenance.compute_modules.cache_clear()
+        provenance._module_code.cache_clear()
         provenance.code_digest.cache_clear()
 
 
@@ -72,7 +72,6 @@ def test_code_digest_follows_the_code_that_computes_a_launch(tmp_path, monkeypat
     labels = pkg / "classify" / "labels.py"
     text = labels.read_text()
     labels.write_text(text.replace('"""', '"""A docstring changed. ', 1) + "\n# a comment\n")
-    assert _digest_of(monkeypatch, pkg) == base
     (pkg / "plot.py").write_text((pkg / "plot.py").read_text() + "\nX = 1\n")
     assert _digest_of(monkeypatch, pkg) == base
     assert "    min_cycles: int = 2" in text
@@ -531,3 +530,21 @@ def test_parts_folder_killed_before_its_manifest_is_not_in_the_way(tmp_path, ref
     (p / ".manifest-x1y2.tmp").write_bytes(b"{")
     run_sweep(spec, resume=resume, command="test")
     same_map(spec.output, reference)
+
+
+def test_dask_workers_with_other_code_are_refused(tmp_path, monkeypatch):
+    """Workers compute with their own installation: one whose code digest differs from this
+    process's ends the run with one line before any task is sent."""
+    distributed = pytest.importorskip("distributed")
+    from ballsurvey.limits import RunError
+    from ballsurvey.sweep import executors
+
+    spec = tiny_spec(tmp_path)
+    with distributed.Client(processes=False, n_workers=1, threads_per_worker=1,
+                            dashboard_address=None) as client:
+        monkeypatch.setattr(executors, "code_digest", lambda: "0" * 64)
+        with pytest.raises(RunError, match="runs other ballsurvey code.*same ballsurvey"):
+            run_sweep(spec, client=client, command="test")
+        monkeypatch.undo()
+        run_sweep(spec, resume=True, client=client, command="test")
+    assert spec.output.exists()

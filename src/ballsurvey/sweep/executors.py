@@ -13,6 +13,7 @@ from contextlib import contextmanager
 from ..compose import warm_up
 from ..limits import RunError
 from .compute import compute_chunk, concat, n_launches
+from .provenance import code_digest
 from .spec import Spec
 
 #: what a script that starts local workers without a main guard is told
@@ -66,13 +67,16 @@ def run_embedded(spec: Spec, chunks: list, todo: list, finished, *, partials=Non
         finished(k, result)
 
 
-def _warm_worker():
-    """On a dask worker: one numba thread (workers are single-threaded), kernels compiled once."""
+def _warm_worker() -> str:
+    """On a dask worker: one numba thread (workers are single-threaded), kernels compiled once;
+    returns the digest of the worker's code (`provenance.code_digest`)."""
     import numba
+
+    from . import provenance
 
     numba.set_num_threads(1)
     warm_up()
-    return True
+    return provenance.code_digest()
 
 
 def run_dask(client, spec: Spec, chunks: list, todo: list, finished, wait_s: float, *,
@@ -94,7 +98,13 @@ def run_dask(client, spec: Spec, chunks: list, todo: list, finished, wait_s: flo
     lost = (CancelledError, CommClosedError, KilledWorker, OSError, TimeoutError)
     resume_hint = "finished chunks are kept: run again with --resume"
     try:
-        client.run(_warm_worker)
+        codes = client.run(_warm_worker)
+        other = {w: c for w, c in codes.items() if c != code_digest()}
+        if other:
+            w, c = next(iter(other.items()))
+            raise RunError(f"the dask worker {w} runs other ballsurvey code (code {str(c)[:12]};"
+                           f" this is code {code_digest()[:12]}): its launches could differ; "
+                           f"install the same ballsurvey on every worker ({resume_hint})")
         ranges = task_ranges(chunks, todo, sum(client.nthreads().values()),
                              {k: n_launches(v) for k, v in partials.items()})
         futs = {client.submit(compute_chunk, spec.text, spec.source, a, b, False, unit=b - a,

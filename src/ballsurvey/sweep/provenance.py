@@ -75,10 +75,9 @@ def _strip_docstrings(tree: ast.AST) -> ast.AST:
 
 
 @functools.cache
-def compute_modules() -> tuple:
-    """The package's source files that take part in computing a launch (paths relative to the
-    package), sorted: `COMPUTE_ROOTS` and every package module they import. The package's own
-    `__init__.py` (the public API) is left out; its version is in the digest."""
+def _module_code() -> dict:
+    """{path relative to the package: its syntax tree without docstrings, dumped} of
+    `compute_modules`."""
     todo = [PACKAGE / r for r in COMPUTE_ROOTS]
     todo += [f for d in COMPUTE_PACKAGES for f in sorted((PACKAGE / d).glob("*.py"))]
     seen: dict = {}
@@ -86,12 +85,18 @@ def compute_modules() -> tuple:
         f = todo.pop()
         if f in seen or f == PACKAGE / "__init__.py":
             continue
-        seen[f] = ast.parse(f.read_text(), str(f))
-        for mod in _imports(f, seen[f]):
-            g = _module_file(mod)
-            if g is not None and g not in seen:
-                todo.append(g)
-    return tuple(sorted(str(f.relative_to(PACKAGE)) for f in seen))
+        tree = ast.parse(f.read_text(), str(f))
+        todo += [g for g in map(_module_file, _imports(f, tree)) if g is not None]
+        seen[f] = ast.dump(_strip_docstrings(tree))
+    return {str(f.relative_to(PACKAGE)): code for f, code in seen.items()}
+
+
+def compute_modules() -> tuple:
+    """The package's source files that take part in computing a launch (paths relative to the
+    package), sorted: `COMPUTE_ROOTS`, the kernel subpackages and every package module they
+    import. The package's own `__init__.py` (the public API) is left out; its version is in the
+    digest."""
+    return tuple(sorted(_module_code()))
 
 
 @functools.cache
@@ -101,9 +106,9 @@ def code_digest() -> str:
     sweep's parts and map; a resume or an "up to date" needs the same digest, since launches
     computed by other code may give other results."""
     h = hashlib.sha256(f"ballsurvey {__version__}\n".encode())
-    for rel in compute_modules():
-        tree = _strip_docstrings(ast.parse((PACKAGE / rel).read_text()))
-        h.update(f"{rel}\n{ast.dump(tree)}\n".encode())
+    code = _module_code()
+    for rel in sorted(code):
+        h.update(f"{rel}\n{code[rel]}\n".encode())
     return h.hexdigest()
 
 
