@@ -548,3 +548,15 @@ def test_dask_workers_with_other_code_are_refused(tmp_path, monkeypatch):
         monkeypatch.undo()
         run_sweep(spec, resume=True, client=client, command="test")
     assert spec.output.exists()
+
+
+def test_a_map_from_before_code_digests_is_named_as_such(tmp_path, reference):
+    """A map (or parts) without a recorded code digest: made by an older ballsurvey, whose spec
+    digests may be computed otherwise; refused as other code, not as another spec."""
+    spec = tiny_spec(tmp_path)
+    ds = reference.copy()
+    ds.attrs.pop("code_digest")
+    ds.attrs["spec_digest"] = "an older digest"
+    ds.to_netcdf(spec.output)
+    with pytest.raises(InputError, match="by a spec with other code .*no code digest recorded"):
+        run_sweep(spec, command="test")

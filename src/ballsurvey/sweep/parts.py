@@ -317,14 +317,15 @@ def existing_output(spec: Spec, *, force: bool) -> None:
     if digest == spec.digest and code == code_digest():
         raise UpToDate(f"{out} is up to date (made by this spec and this code); --force "
                        "recomputes it")
-    if digest == spec.digest:
-        version = source.split(" (")[0] if isinstance(source, str) else None
-        raise OutputRefused(f"{out} was made by this spec with other code "
-                            f"({_code_words(code, version)}; this is {_this_code()}): its results "
-                            "may differ from this code's; --force recomputes it")
-    hint = _backend_hint(spec, digest)
     keep = (" (--force --resume keeps the saved parts)"
             if (parts_dir(out) / MANIFEST).is_file() else "")
+    if code != code_digest():  # its spec digest may be of another scheme: not compared
+        version = source.split(" (")[0] if isinstance(source, str) else None
+        which = "this spec" if digest == spec.digest else "a spec"
+        raise OutputRefused(f"{out} was made by {which} with other code "
+                            f"({_code_words(code, version)}; this is {_this_code()}): its results "
+                            f"may differ from this code's; --force recomputes it{keep}")
+    hint = _backend_hint(spec, digest)
     raise OutputRefused(f"{out} exists, made by another spec{hint}; use --force to overwrite "
                         f"it{keep}")
 
@@ -393,19 +394,19 @@ def _check_manifest(parts: Path, spec: Spec) -> dict:
             raise ValueError
     except (OSError, ValueError):
         raise OutputRefused(f"{parts} has no readable manifest; {discard}") from None
-    if man.get("spec_digest") != spec.digest:
-        hint = _backend_hint(spec, man.get("spec_digest"))
-        raise OutputRefused(f"{parts} belongs to a different spec{hint}; refusing to mix "
-                            f"results ({discard})")
-    if man.get("format") != PART_FORMAT or not isinstance(man.get("chunk"), int):
-        raise OutputRefused(f"{parts} has no chunk plan (made by an older ballsurvey); {discard}")
-    if man.get("code_digest") != code_digest():
+    if man.get("code_digest") != code_digest():  # first: another code may digest specs otherwise
         version = man.get("version")
         was = _code_words(man.get("code_digest"), version and f"ballsurvey {version}")
         raise OutputRefused(
             f"{parts} was saved by other code ({was}; "
             f"this is {_this_code()}): its launches may differ from this code's; refusing to mix "
             f"results ({discard})")
+    if man.get("spec_digest") != spec.digest:
+        hint = _backend_hint(spec, man.get("spec_digest"))
+        raise OutputRefused(f"{parts} belongs to a different spec{hint}; refusing to mix "
+                            f"results ({discard})")
+    if man.get("format") != PART_FORMAT or not isinstance(man.get("chunk"), int):
+        raise OutputRefused(f"{parts} has no chunk plan (made by an older ballsurvey); {discard}")
     if list(man.get("shape", [])) != list(spec.shape):
         raise OutputRefused(f"{parts}: recorded grid {man.get('shape')} is not the "
                             f"spec's {list(spec.shape)}; {discard}")
