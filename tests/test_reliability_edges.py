@@ -560,3 +560,36 @@ def test_a_map_from_before_code_digests_is_named_as_such(tmp_path, reference):
     ds.to_netcdf(spec.output)
     with pytest.raises(InputError, match="by a spec with other code .*no code digest recorded"):
         run_sweep(spec, command="test")
+
+
+def test_a_burst_of_ctrl_c_is_still_one_line_and_status_130(tmp_path, big_spec_text):
+    """A key held down: Ctrl-C after Ctrl-C while the run saves and exits; one line, status 130
+    (not a traceback, nor a death by SIGINT)."""
+    import os
+    import re
+    import signal
+    import threading
+
+    (tmp_path / "big.toml").write_text(big_spec_text)
+    proc = subprocess.Popen([sys.executable, "-m", "ballsurvey", "sweep", "big.toml", "-v",
+                             "--no-progress"], cwd=tmp_path, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+    killer = threading.Timer(300, lambda: os.killpg(proc.pid, signal.SIGKILL))
+    killer.start()
+    try:
+        for line in proc.stderr:
+            m = re.search(r"(\d+) of 2000 launches done", line)
+            if m and int(m.group(1)) > 0:
+                break
+        for _ in range(10):
+            try:
+                os.killpg(proc.pid, signal.SIGINT)
+            except ProcessLookupError:
+                break
+            threading.Event().wait(0.03)
+        err = proc.stderr.read()
+        proc.wait()
+    finally:
+        killer.cancel()
+    lines = err.strip().splitlines()
+    assert proc.returncode == 130 and len(lines) == 1 and "interrupted;" in lines[0], err

@@ -12,6 +12,10 @@ an axis), the `ds.ballsurvey` accessor (label words), `Ball`, `Thresholds`, `LAB
 __version__ = "0.1.0"
 
 
+#: this process is the command line (`ballsurvey ...`, `python -m ballsurvey ...`)
+_COMMAND_LINE = False
+
+
 def _one_line_interrupt() -> None:
     """The command line (`ballsurvey ...`, `python -m ballsurvey ...`): a Ctrl-C that escapes
     everything, such as one while this package is still importing, ends with one line and exit
@@ -19,8 +23,10 @@ def _one_line_interrupt() -> None:
     import os
     import sys
 
+    global _COMMAND_LINE
     if os.path.basename(sys.argv[0] if sys.argv else "") not in ("ballsurvey", "-m"):
         return
+    _COMMAND_LINE = True
     previous = sys.excepthook
 
     def hook(kind, value, tb):

@@ -234,6 +234,7 @@ def _cmd_sweep(args):
                                 progress=progress, command=command, dask_wait_s=wait_s,
                                 notice=notice, on_unit=on_unit, report=report)
     except KeyboardInterrupt as exc:  # the run's own account, or one of the saved parts
+        _ignore_more_ctrl_c()
         again = " ".join(shlex.quote(a) for a in sys.argv[1:] if a != "--resume")
         if isinstance(exc, SweepInterrupted):
             kept = f"{exc.kept} of {exc.total} launches are saved in {exc.parts}"
@@ -844,6 +845,21 @@ def main(argv=None) -> int:
         print(f"ballsurvey {args.command}: error: {what or type(exc).__name__}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
+        _ignore_more_ctrl_c()
         print(f"ballsurvey {args.command}: interrupted", file=sys.stderr)
         return 130
+    _ignore_more_ctrl_c()  # done: a Ctrl-C while the interpreter shuts down changes nothing
     return 0
+
+
+def _ignore_more_ctrl_c() -> None:
+    """After the one line of an interruption, or the work: a burst of Ctrl-C (a key held down)
+    does not cut the exit short into a traceback or a death by signal. The command line only
+    (`ballsurvey._COMMAND_LINE`): `main` called from Python leaves the caller's Ctrl-C alone."""
+    import signal
+    import threading
+
+    from . import _COMMAND_LINE
+
+    if _COMMAND_LINE and threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
