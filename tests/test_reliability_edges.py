@@ -128,12 +128,16 @@ def test_a_map_made_by_other_code_is_not_up_to_date(tmp_path, monkeypatch, capsy
     ("dt = 1e-3", "dt = 0.001\nobserve_every = 4\nmethod = 'rk4'"),  # defaults written out
     ("chunk = 2", "chunk = 5"),  # the chunk plan does not change results
     ("phidot0 = -3.0", "phidot0 = [-3]"),
+    ('file = "OUT"', 'file = "OUT"\nvariables = ["n_sides", "label", "closure_m"]'),
     ("title = \"tiny\"", "title = \"tiny\"  # a comment"),
 ])
 def test_spec_digest_is_of_parsed_values(tmp_path, old, new):
     a = tiny_spec(tmp_path)
     assert old in TINY
     b = tiny_spec(tmp_path, text=TINY.replace(old, new))
+    if "variables" in new:  # the same variables in another order
+        a = tiny_spec(tmp_path, text=TINY.replace(old, 'file = "OUT"\nvariables = '
+                                                       '["closure_m", "n_sides"]'))
     assert a.digest == b.digest
     c = tiny_spec(tmp_path, text=TINY.replace("T = 2.0", "T = 2.5"))
     assert c.digest != a.digest

@@ -440,15 +440,15 @@ def _canon(v):
 
 def spec_digest(spec: Spec) -> str:
     """SHA-256 of what a spec asks for, from its parsed and completed values: comments, layout,
-    how a number is written (20 or 20.0) and defaults written out or left to apply change
-    nothing. The chunk plan and the output file are not part of it (a map's results do not
-    depend on them)."""
+    how a number is written (20 or 20.0), defaults written out or left to apply and the order of
+    [output] variables change nothing. The chunk plan and the output file are not part of it (a
+    map's results do not depend on them)."""
     what = {"title": spec.title, "ball": spec.ball.as_dict(), "kind": spec.kind,
             "axes": [[k, v] for k, v in spec.axes.items()],
             "points": [[k, v] for k, v in spec.points.items()], "chi0_deg": spec.chi0_deg,
             "T": spec.T, "dt": spec.dt, "method": spec.method, "rtol": spec.rtol,
             "atol": spec.atol, "mode": spec.mode, "cycles": spec.cycles,
             "observe_every": spec.observe_every, "block": spec.block,
-            "thresholds": spec.thresholds.as_dict(), "variables": spec.variables,
+            "thresholds": spec.thresholds.as_dict(), "variables": sorted(spec.variables),
             "compression": spec.compression, "backend": spec.backend}
     return hashlib.sha256(json.dumps(_canon(what), sort_keys=True).encode()).hexdigest()
