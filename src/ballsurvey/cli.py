@@ -859,7 +859,6 @@ def _ignore_more_ctrl_c() -> None:
     import signal
     import threading
 
-    from . import _COMMAND_LINE
-
-    if _COMMAND_LINE and threading.current_thread() is threading.main_thread():
+    command_line = getattr(sys.modules.get("ballsurvey"), "_COMMAND_LINE", False)
+    if command_line and threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, signal.SIG_IGN)
