@@ -386,40 +386,82 @@ def test_ctrl_c_while_the_package_imports_is_one_line(how):
     assert r.returncode == 130 and r.stderr == "ballsurvey: interrupted\n", r.stderr
 
 
+class Terminal:
+    """`python -m ballsurvey ARGS` in its own process group, as at a terminal: `ctrl_c()`
+    signals the whole group; killed after 300 s whatever happens."""
+
+    def __init__(self, cwd, *args):
+        import os
+        import signal
+        import threading
+
+        self.proc = subprocess.Popen([sys.executable, "-m", "ballsurvey", *args], cwd=cwd,
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                     start_new_session=True)
+        self.killer = threading.Timer(300, lambda: os.killpg(self.proc.pid, signal.SIGKILL))
+        self.killer.start()
+
+    def ctrl_c(self, times=1, gap_s=0.03):
+        import os
+        import signal
+        import time
+
+        for _ in range(times):
+            try:
+                os.killpg(self.proc.pid, signal.SIGINT)
+            except ProcessLookupError:
+                return
+            time.sleep(gap_s)
+
+    def until_launches_done(self, total=2000):
+        """Read stderr up to the first line saying some launches are done; no traceback on
+        the way."""
+        import re
+
+        for line in self.proc.stderr:
+            m = re.search(rf"(\d+) of {total} launches done", line)
+            if m and int(m.group(1)) > 0:
+                return
+            assert "Traceback" not in line and "KeyboardInterrupt" not in line, line
+
+    def end(self):
+        """(exit status, stderr lines left)."""
+        try:
+            err = self.proc.stderr.read()
+            self.proc.wait()
+        finally:
+            self.killer.cancel()
+        return self.proc.returncode, err.strip().splitlines()
+
+
 def test_ctrl_c_while_local_workers_start_is_one_line(tmp_path, big_spec_text):
     """Ctrl-C at a terminal (the whole process group) while the local cluster starts: the
     starting workers ignore it (a traceback each before), and so does the run for those seconds;
     a Ctrl-C once launches run ends it with one line."""
     pytest.importorskip("distributed")
-    import os
-    import re
-    import signal
-    import threading
+    import time
 
     (tmp_path / "big.toml").write_text(big_spec_text)
-    proc = subprocess.Popen([sys.executable, "-m", "ballsurvey", "sweep", "big.toml",
-                             "--workers", "1", "-v", "--no-progress"], cwd=tmp_path,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
-    killer = threading.Timer(300, lambda: os.killpg(proc.pid, signal.SIGKILL))
-    killer.start()
-    try:
-        first = proc.stderr.readline()  # "... launches (...) -> ...": the cluster starts next
-        assert "launches" in first, first
-        threading.Event().wait(1.0)
-        os.killpg(proc.pid, signal.SIGINT)
-        for line in proc.stderr:
-            m = re.search(r"(\d+) of 2000 launches done", line)
-            if m and int(m.group(1)) > 0:
-                break
-            assert "Traceback" not in line and "KeyboardInterrupt" not in line, line
-        os.killpg(proc.pid, signal.SIGINT)
-        err = proc.stderr.read()
-        proc.wait()
-    finally:
-        killer.cancel()
-    lines = err.strip().splitlines()
-    assert proc.returncode == 130 and len(lines) == 1 and "interrupted;" in lines[0], err
+    term = Terminal(tmp_path, "sweep", "big.toml", "--workers", "1", "-v", "--no-progress")
+    first = term.proc.stderr.readline()  # "... launches (...) -> ...": the cluster starts next
+    assert "launches" in first, first
+    time.sleep(1.0)
+    term.ctrl_c()
+    term.until_launches_done()
+    term.ctrl_c()
+    code, lines = term.end()
+    assert code == 130 and len(lines) == 1 and "interrupted;" in lines[0], lines
+
+
+def test_a_burst_of_ctrl_c_is_still_one_line_and_status_130(tmp_path, big_spec_text):
+    """A key held down: Ctrl-C after Ctrl-C while the run saves and exits; one line, status 130
+    (not a traceback, nor a death by SIGINT)."""
+    (tmp_path / "big.toml").write_text(big_spec_text)
+    term = Terminal(tmp_path, "sweep", "big.toml", "-v", "--no-progress")
+    term.until_launches_done()
+    term.ctrl_c(times=10)
+    code, lines = term.end()
+    assert code == 130 and len(lines) == 1 and "interrupted;" in lines[0], lines
 
 
 def test_ctrl_c_during_assembly_keeps_every_part_and_says_resume(tmp_path, monkeypatch, capsys,
@@ -565,35 +607,3 @@ def test_a_map_from_before_code_digests_is_named_as_such(tmp_path, reference):
     with pytest.raises(InputError, match="by a spec with other code .*no code digest recorded"):
         run_sweep(spec, command="test")
 
-
-def test_a_burst_of_ctrl_c_is_still_one_line_and_status_130(tmp_path, big_spec_text):
-    """A key held down: Ctrl-C after Ctrl-C while the run saves and exits; one line, status 130
-    (not a traceback, nor a death by SIGINT)."""
-    import os
-    import re
-    import signal
-    import threading
-
-    (tmp_path / "big.toml").write_text(big_spec_text)
-    proc = subprocess.Popen([sys.executable, "-m", "ballsurvey", "sweep", "big.toml", "-v",
-                             "--no-progress"], cwd=tmp_path, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, start_new_session=True)
-    killer = threading.Timer(300, lambda: os.killpg(proc.pid, signal.SIGKILL))
-    killer.start()
-    try:
-        for line in proc.stderr:
-            m = re.search(r"(\d+) of 2000 launches done", line)
-            if m and int(m.group(1)) > 0:
-                break
-        for _ in range(10):
-            try:
-                os.killpg(proc.pid, signal.SIGINT)
-            except ProcessLookupError:
-                break
-            threading.Event().wait(0.03)
-        err = proc.stderr.read()
-        proc.wait()
-    finally:
-        killer.cancel()
-    lines = err.strip().splitlines()
-    assert proc.returncode == 130 and len(lines) == 1 and "interrupted;" in lines[0], err
