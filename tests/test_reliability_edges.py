@@ -612,3 +612,11 @@ def test_a_map_from_before_code_digests_is_named_as_such(tmp_path, reference):
     with pytest.raises(InputError, match="by a spec with other code .*no code digest recorded"):
         run_sweep(spec, command="test")
 
+
+
+def test_an_output_that_is_no_map_is_named_as_such(tmp_path):
+    spec = tiny_spec(tmp_path)
+    spec.output.write_text("notes")
+    with pytest.raises(InputError, match="is not a map written by a sweep.*--force"):
+        run_sweep(spec, command="test")
+    assert spec.output.read_text() == "notes"

@@ -319,6 +319,9 @@ def existing_output(spec: Spec, *, force: bool) -> None:
                        "recomputes it")
     keep = (" (--force --resume keeps the saved parts)"
             if (parts_dir(out) / MANIFEST).is_file() else "")
+    if digest is None:
+        raise OutputRefused(f"{out} exists and is not a map written by a sweep (no spec digest "
+                            f"in it, or not netCDF); use --force to overwrite it{keep}")
     if code != code_digest():  # its spec digest may be of another scheme: not compared
         version = source.split(" (")[0] if isinstance(source, str) else None
         which = "this spec" if digest == spec.digest else "a spec"
