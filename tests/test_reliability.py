@@ -87,7 +87,7 @@ BASE = {"launch": {"theta0_deg": "5.0", "thetadot0": "0.0", "chidot0": "4.0", "p
 def spec_text(**sections):
     doc = {s: dict(kv) for s, kv in BASE.items()}
     for sec, kv in sections.items():
-        doc[sec].update(kv)
+        doc.setdefault(sec, {}).update(kv)
     return "".join(f"[{s}]\n" + "".join(f"{k} = {v}\n" for k, v in kv.items())
                    for s, kv in doc.items())
 
@@ -113,8 +113,18 @@ SPEC_CASES = [  # (sections, first words of the message after "<spec file>: ")
     ({"run": {"observe_every": "0"}}, "[run] observe_every: must be >= 1"),
     ({"run": {"cycles": "2.5"}}, "[run] cycles: must be a whole number"),
     ({"run": {"block": "-1"}}, "[run] block: must be >= 1"),
-    ({"run": {"T": "1e7", "dt": "1e-6"}}, "[run] dt: T/dt = 1e+13 steps per launch"),
+    ({"run": {"T": "1e6", "dt": "1e-7"}}, "[run] dt: T/dt = 1e+13 steps per launch"),
     ({"run": {"T": "inf"}}, "[run] T: must be finite"),
+    ({"run": {"mode": "'period'", "cycles": "1"}}, "[run] cycles: period mode integrates 1"),
+    ({"ball": {"a": "1e300", "c": "0.0", "M": "0.1", "A": "1e-5", "B": "1e-5"}},
+     "[ball] a: must be within 0.0001..100 m"),
+    ({"ball": {"a": "0.025", "c": "0.0", "M": "0.1", "A": "1e-300", "B": "1e-300"}},
+     "[ball] A: A/(M a^2) must be within"),
+    ({"ball": {"a": "0.025", "cut_height": "0.005", "M": "0.1", "g": "1e300"}},
+     "[ball] g: must be within"),
+    ({"run": {"T": "1" * 320}}, "[run] T: must be within +-1.8e308"),
+    ({"run": {"T": "1" * 5000}}, "not a usable spec: Exceeds the limit (4300 digits)"),
+    ({"run": {"T": "1e308", "dt": "1e300", "method": "'dop853'"}}, "[run] T: must be <= 1e+06"),
     ({"run": {"chunk": "1e9"}}, "[run] chunk: 1000000000 launches per chunk need about"),
     ({"run": {"chunk": "1"}, "launch": {"theta0_deg": R % 2000, "chidot0": C % 1000}},
      "[run] chunk: 1 launches per chunk cut 2e+06 launches into 2e+06 chunks"),
@@ -160,14 +170,23 @@ CLI_CASES = [  # (argv, first words of the message after "ballsurvey CMD: error:
     (["sweep", "s.toml", "--chunk", "0"], "--chunk: must be >= 1"),
     (["sweep", "s.toml", "--chunk", "1000000000"], "--chunk: 1000000000 launches per chunk"),
     (["sweep", "s.toml", "--dask-timeout", "nan"], "--dask-timeout: must be finite"),
+    (["sweep", "s.toml", "--chunk", "9" * 400], "--chunk: must be within +-1.8e308"),
+    *[(["sweep", "s.toml", "--scheduler", a], f"--scheduler: {a!r} is not a scheduler address")
+      for a in ("notanaddress", "tcp://127.0.0.1:abc", "inproc://x", "", "tcp://h:0")],
+    *[(["bench", flag, v], f"{flag}: must be") for flag, v in (
+        ("--launches", "0"), ("--launches", "-5"), ("--steps", "0"), ("--repeats", "0"),
+        ("--block", "0"), ("--dt", "0"), ("--dt", "nan"), ("--observe-every", "-3"),
+        ("--map", "0"), ("--period", "0"), ("--headline", "0"), ("--T", "1e308"))],
+    (["bench", "--map", "2", "--spec", "x.toml"], "--map and --spec are two benchmarks"),
+    (["gallery", "m.nc", "--seed", "-1"], "--seed: must be >= 0"),
     (["sweep", "s.toml", "-o", "adir", "--force"], "-o/--output: must be a file name ending in .nc"),
     (["sweep", "s.toml", "-o", "adir.nc", "--force"], "-o/--output: adir.nc is a folder"),
     (["path", "--theta0-deg", "-5", "--chidot0", "nan", "--phidot0", "-3"],
      "--chidot0: must be finite"),
     (["path", "--theta0-deg", "-5", "--chidot0", "4", "--phidot0", "inf"],
      "--phidot0: must be finite"),
-    (["path", "--theta0-deg", "-5", "--chidot0", "4", "--phidot0", "-3", "--T", "1e7", "--dt",
-      "1e-6"], "--dt: T/dt = 1e+13 steps per launch is more than 1e+10"),
+    (["path", "--theta0-deg", "-5", "--chidot0", "4", "--phidot0", "-3", "--T", "1e6", "--dt",
+      "1e-7"], "--dt: T/dt = 1e+13 steps per launch is more than 1e+10"),
     (["path", "--theta0-deg", "-5", "--chidot0", "4", "--phidot0", "-3", "--T", "-1"],
      "--T: must be > 0"),
     (["path", "--theta0-deg", "-5", "--chidot0", "4", "--phidot0", "-3", "--n-out", "1"],
@@ -221,7 +240,8 @@ def test_bad_option_one_line_exit_2_nothing_written(tmp_path, capsys, monkeypatc
     (dict(thetadot0="1"), "thetadot0: must be a number"),
     (dict(rtol=-1.0, method="dopri5"), "rtol: must be > 0"),
     (dict(rtol=1e-300, method="dopri5"), "rtol: must be in"),
-    (dict(T=1e7, dt=1e-6), "dt: T/dt = 1e+13 steps"),
+    (dict(T=1e6, dt=1e-7), "dt: T/dt = 1e+13 steps"),
+    (dict(T=1e308, dt=1e300, method="dop853"), "T: must be <= 1e+06"),
     (dict(T=-1.0), "T: must be > 0"),
     (dict(n_out=10**9), "n_out: must be <= 1e+07"),
     (dict(method="euler"), "method: unknown method"),

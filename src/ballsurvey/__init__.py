@@ -11,6 +11,40 @@ an axis), the `ds.ballsurvey` accessor (label words), `Ball`, `Thresholds`, `LAB
 """
 __version__ = "0.1.0"
 
+
+#: this process is the command line (`ballsurvey ...`, `python -m ballsurvey ...`)
+_COMMAND_LINE = False
+
+
+def _one_line_interrupt() -> None:
+    """The command line (`ballsurvey ...`, `python -m ballsurvey ...`): a Ctrl-C that escapes
+    everything, such as one while this package is still importing, ends with one line and exit
+    status 130, not a traceback. Library use is left alone."""
+    import os
+    import sys
+
+    global _COMMAND_LINE
+    if os.path.basename(sys.argv[0] if sys.argv else "") not in ("ballsurvey", "-m"):
+        return
+    _COMMAND_LINE = True
+    previous = sys.excepthook
+
+    def hook(kind, value, tb):
+        if not issubclass(kind, KeyboardInterrupt):
+            return previous(kind, value, tb)
+        try:
+            sys.stdout.flush()
+        except Exception:  # noqa: BLE001, S110 - a closed stdout: nothing to flush
+            pass
+        sys.stderr.write("ballsurvey: interrupted\n")
+        sys.stderr.flush()
+        os._exit(130)
+
+    sys.excepthook = hook
+
+
+_one_line_interrupt()
+
 # the subpackages first: importing them later would rebind the names `sweep` and `query`
 from . import query as _query_module  # noqa: E402,F401
 from . import sweep as _sweep_package  # noqa: E402,F401

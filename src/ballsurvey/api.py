@@ -25,9 +25,10 @@ import numpy as np
 import xarray as xr
 
 from . import limits
+from .axes import LAUNCH_AXES
 from .classify.labels import CODE, LABELS
 from .limits import InputError
-from .store import decode_label
+from .store import decode_label, netcdf_lock
 
 #: a map written by `sweep` with no output file named is kept in memory up to this many launches
 MAX_IN_MEMORY = 10**6
@@ -96,7 +97,7 @@ def _spec_text(spec) -> tuple[str, str, bool]:
         raise InputError(f"a spec is a path, TOML text or a dict, got {type(spec).__name__}")
     try:
         names_file = "file" in tomllib.loads(text).get("output", {})
-    except (tomllib.TOMLDecodeError, AttributeError):
+    except (ValueError, AttributeError):  # TOMLDecodeError is a ValueError
         names_file = True  # load_spec says what is wrong
     return text, source, names_file
 
@@ -143,8 +144,13 @@ def sweep(spec, *, output=None, resume: bool = False, force: bool = False,
         Ctrl-C; the finished work is kept for `resume=True`.
     """
     from .sweep import load_spec
-    from .sweep.engine import UpToDate, check_output_path, dask_client, output_is_current, run_sweep
+    from .sweep.engine import UpToDate, check_output_path, dask_client, run_sweep
+    from .sweep.parts import existing_output, tidy_finished
 
+    if workers is not None:
+        limits.workers(workers, "workers")
+    if scheduler is not None:
+        limits.scheduler(scheduler, "scheduler")
     text, source, names_file = _spec_text(spec)
     s = load_spec(source, text=text)
     if output is not None:
@@ -158,7 +164,13 @@ def sweep(spec, *, output=None, resume: bool = False, force: bool = False,
         if in_memory:
             s = replace(s, output=Path(tmp) / "map.nc")
         check_output_path(s.output)
-        if not (output_is_current(s) and not force):
+        try:
+            existing_output(s, force=force)
+            current = False
+        except UpToDate:
+            tidy_finished(s, notice)
+            current = True
+        if not current:
             with dask_client(scheduler, workers) as client:
                 try:
                     run_sweep(s, resume=resume, force=force, client=client, progress=progress,
@@ -216,18 +228,30 @@ def open_map(path, load: bool | None = None) -> xr.Dataset:
         raise InputError(f"cannot read {path}: {exc.strerror}") from None
     if magic not in (b"\x89HDF", b"CDF\x01", b"CDF\x02"):
         raise InputError(f"{path} is not a netCDF file (a ballsurvey map is written by `sweep`)")
-    try:
-        ds = xr.open_dataset(p)
-    except Exception as exc:  # noqa: BLE001 - xarray's backends raise many kinds; one line
-        raise InputError(f"cannot read {path} as netCDF ({type(exc).__name__})") from None
-    if "label" not in ds:
-        ds.close()
-        raise InputError(f"{path} has no 'label' variable: not a ballsurvey map")
-    if load is None:
-        load = p.stat().st_size < 256 * 2**20
-    if load:
-        with ds:
-            ds = ds.load()
+    with netcdf_lock():  # one thread in netCDF/HDF5 at a time (a sweep may be writing)
+        try:
+            ds = xr.open_dataset(p)
+        except Exception as exc:  # noqa: BLE001 - xarray's backends raise many kinds; one line
+            raise InputError(f"cannot read {path} as netCDF ({type(exc).__name__})") from None
+        if "label" not in ds:
+            ds.close()
+            raise InputError(f"{path} has no 'label' variable: not a ballsurvey map")
+        words = str(ds.label.attrs.get("flag_meanings", "")).split()
+        if (not np.issubdtype(ds.label.dtype, np.integer) or not words
+                or not set(words) <= set(LABELS)):
+            ds.close()
+            raise InputError(f"{path}: its 'label' variable is not ballsurvey's label codes "
+                             "(integers with flag_meanings naming label words): not a map")
+        missing = [k for k in LAUNCH_AXES if k not in ds.variables]
+        if missing:
+            ds.close()
+            raise InputError(f"{path} lacks the launch conditions {', '.join(missing)}: not a "
+                             "ballsurvey map")
+        if load is None:
+            load = p.stat().st_size < 256 * 2**20
+        if load:
+            with ds:
+                ds = ds.load()
     return ds
 
 

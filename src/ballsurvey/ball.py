@@ -99,7 +99,7 @@ class Ball:
         z_g = integral(np.pi * r2 * z) / volume  # < 0: G lies away from the cut
         i_axis = rho * integral(np.pi * r2 * r2 / 2)  # discs: r^4/2 about the axis
         i_perp_centre = rho * integral(np.pi * (r2 * r2 / 4 + r2 * z * z))
-        c = -z_g
+        c = -z_g + 0.0  # + 0.0: a whole sphere has c = 0.0, not -0.0
         A = i_perp_centre - M * c * c  # parallel-axis theorem to G
         return cls(a=a, c=c, M=M, A=A, B=i_axis, g=g, cut_height=h)
 

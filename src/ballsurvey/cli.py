@@ -67,6 +67,7 @@ def _out_file(name, value, suffix):
         raise UserError(f"{name}: must be a file name ending in {want}, got {value!r}")
     if p.is_dir():
         raise UserError(f"{name}: {value} is a folder; give a file name ending in {want}")
+    _check_writable(name, p.parent)
     return p
 
 
@@ -84,13 +85,58 @@ COMMAND_ORDER = ("path", "sweep", "plot", "query", "find", "explore", "gallery",
 PATH_T = 20.0
 
 
+def _check_writable(name, folder) -> None:
+    """Refuse (one line, exit 2, before any work) an output folder that cannot be written: the
+    nearest folder of it that exists must take a new file (tried, and removed at once)."""
+    import os
+    import tempfile
+    from pathlib import Path
+
+    d = Path(os.path.abspath(folder))
+    while not d.exists() and d != d.parent:
+        d = d.parent
+    if not d.is_dir():
+        raise UserError(f"{name}: {d} is a file, not a folder")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".ballsurvey-probe-", dir=d)
+    except OSError as exc:
+        raise UserError(f"{name}: cannot write in {d}: {exc.strerror}") from None
+    os.close(fd)
+    os.unlink(probe)
+
+
+def _check_bench(args):
+    """Every bench option by the shared rules, before anything is compiled or timed."""
+    from . import limits
+
+    modes = [f for f in ("map", "spec", "scaling", "period", "headline")
+             if getattr(args, f) is not None]
+    if len(modes) > 1:
+        raise UserError(f"--{modes[0]} and --{modes[1]} are two benchmarks: give one")
+    for name in ("map", "period", "headline"):
+        _opt(f"--{name}", getattr(args, name), integer=True, lo=1, hi=10**4)
+    _opt("--launches", args.launches, integer=True, lo=1, hi=10**8)
+    _opt("--steps", args.steps, integer=True, lo=1, hi=10**8)
+    _opt("--repeats", args.repeats, integer=True, lo=1, hi=1000)
+    _opt("--block", args.block, integer=True, lo=1, hi=limits.MAX_BLOCK)
+    _opt("--observe-every", args.observe_every, integer=True, lo=1, hi=limits.MAX_OBSERVE_EVERY)
+    _opt("--dt", args.dt, positive=True)
+    _opt("--T", args.T, positive=True, hi=limits.MAX_DURATION_S)
+    for name in ("threads", "workers"):
+        _opt(f"--{name}", getattr(args, name), integer=True, lo=1, hi=limits.MAX_WORKERS)
+    for name in ("spec", "scaling"):
+        if getattr(args, name) == "":
+            raise UserError(f"--{name}: give a spec file (.toml)")
+
+
 def _cmd_bench(args):
     from .bench import run_bench, run_map_bench
 
+    _check_bench(args)
     if not args.scaling and (args.threads is not None or args.workers is not None):
         raise InputError("--threads and --workers go with --scaling SPEC.toml")
 
-    if args.map:
+    if args.map is not None:
         run_map_bench(n=args.map, T=args.T, dt=args.dt)
         return
     if args.spec:
@@ -103,12 +149,12 @@ def _cmd_bench(args):
 
         run_scaling(args.scaling, threads=args.threads, workers=args.workers)
         return
-    if args.period:
+    if args.period is not None:
         from .bench import run_period_bench
 
         run_period_bench(n=args.period, T=args.T)
         return
-    if args.headline:
+    if args.headline is not None:
         from .bench import run_headline
 
         method = args.method or ("rk4" if args.backend == "cuda" else "dop853")
@@ -147,7 +193,8 @@ def _cmd_sweep(args):
 
     from . import limits
     from .sweep import SweepInterrupted, load_spec, run_sweep
-    from .sweep.engine import check_output_path, dask_client, output_is_current
+    from .sweep.engine import UpToDate, check_output_path, dask_client
+    from .sweep.parts import existing_output, tidy_finished
 
     out = _out_file("-o/--output", args.output, ".nc")
     chunk = args.chunk
@@ -155,6 +202,8 @@ def _cmd_sweep(args):
         chunk = limits.chunk_size(chunk, "--chunk")
     if args.workers is not None:
         limits.workers(args.workers)
+    if args.scheduler is not None:
+        limits.scheduler(args.scheduler)
     wait_s = _opt("--dask-timeout", args.dask_timeout, positive=True, hi=86400)
     spec = load_spec(args.spec, run={"backend": args.backend} if args.backend else None)
     if out is not None:
@@ -166,15 +215,19 @@ def _cmd_sweep(args):
     if spec.backend == "cuda":
         _check_cuda()
 
-    if output_is_current(spec) and not args.force:
-        print(f"{spec.output} is up to date (made by this spec); --force recomputes it")
-        return
     verbosity = args.verbose - args.quiet
     progress = args.progress if args.progress is not None else (None if verbosity >= 0 else False)
 
     def notice(msg):
         if verbosity >= 0:
             print(f"ballsurvey sweep: {msg}", file=sys.stderr, flush=True)
+
+    try:  # before any cluster starts: an existing map this run would not touch
+        existing_output(spec, force=args.force)
+    except UpToDate as exc:
+        tidy_finished(spec, notice)
+        print(exc)
+        return
 
     last = [0.0]
 
@@ -199,10 +252,23 @@ def _cmd_sweep(args):
             written = run_sweep(spec, resume=args.resume, force=args.force, client=client,
                                 progress=progress, command=command, dask_wait_s=wait_s,
                                 notice=notice, on_unit=on_unit, report=report)
-    except SweepInterrupted as exc:
+    except KeyboardInterrupt as exc:  # the run's own account, or one of the saved parts
+        _ignore_more_ctrl_c()
         again = " ".join(shlex.quote(a) for a in sys.argv[1:] if a != "--resume")
-        print(f"ballsurvey sweep: interrupted; {exc.kept} of {exc.total} launches are saved in "
-              f"{exc.parts}: run `ballsurvey {again} --resume` to continue", file=sys.stderr)
+        if isinstance(exc, SweepInterrupted):
+            kept = f"{exc.kept} of {exc.total} launches are saved in {exc.parts}"
+        else:  # before the run started (a cluster starting) or after it ended
+            from .sweep.engine import parts_dir
+
+            parts = parts_dir(spec.output)
+            n = len(list(parts.glob("*.npz"))) if parts.is_dir() else 0
+            if not n:
+                print("ballsurvey sweep: interrupted before any launch was saved",
+                      file=sys.stderr)
+                raise SystemExit(130) from None
+            kept = f"the {n} saved parts in {parts} are kept"
+        print(f"ballsurvey sweep: interrupted; {kept}: run `ballsurvey {again} --resume` to "
+              "continue", file=sys.stderr)
         raise SystemExit(130) from None
     if verbosity < 0:
         print(f"wrote {written}")
@@ -250,6 +316,7 @@ def sweep_summary(path, n_launches: int, report: dict) -> str:
     import xarray as xr
 
     from .classify.labels import LABELS, SHAPES
+    from .integrate.tableaus import LANE_ADAPTIVE
 
     wall = report.get("wall_s", float("nan"))
     comp = report.get("compile_s", 0.0)
@@ -262,9 +329,14 @@ def sweep_summary(path, n_launches: int, report: dict) -> str:
         head += f", {rate:,.0f} launches/s"
     if report.get("resumed"):
         head += f", {report['resumed']} of them from the interrupted run"
-    with xr.open_dataset(path) as ds:
+    from .store import netcdf_lock
+
+    with netcdf_lock(), xr.open_dataset(path) as ds:
         codes = ds.label.values.ravel()
-        fallback = int((ds.formulation.values == 1).sum()) if "formulation" in ds else None
+        # the lane methods (dop853) integrate every launch in the fixed frame: no fallback
+        by_design = ds.attrs.get("run_method") in LANE_ADAPTIVE
+        fallback = (int((ds.formulation.values == 1).sum())
+                    if "formulation" in ds and not by_design else None)
         sparse = 0
         if "samples_per_cycle" in ds:
             floor = ds.attrs.get("classify_min_samples_per_cycle", 20.0)
@@ -415,6 +487,7 @@ def _cmd_gallery(args):
     from .gallery import draw_gallery
 
     _opt("--per-label", args.per_label, integer=True, lo=1, hi=100)
+    _opt("--seed", args.seed, integer=True, lo=0, hi=2**32 - 1)
     _opt("--T", args.T, positive=True, hi=1e6)
     ds = _open_map(args.result)  # a folder or '.' is refused here, before naming the output
     out = _figure_file(args.output or str(Path(args.result).with_name(
@@ -435,6 +508,7 @@ def _cmd_accuracy(args):
         return
     from .accuracy import run_accuracy
 
+    _check_writable("-o/--output", args.output)
     run_accuracy(args.output, quick=args.quick, fig_format=args.format)
 
 
@@ -585,6 +659,7 @@ def _write_refined(out, res, args) -> None:
 def _cmd_paper(args):
     from .paper import reproduce
 
+    _check_writable("-o/--output", args.output)
     reproduce(args.output, fig_format=args.format)
 
 
@@ -895,6 +970,20 @@ def main(argv=None) -> int:
         print(f"ballsurvey {args.command}: error: {what or type(exc).__name__}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
+        _ignore_more_ctrl_c()
         print(f"ballsurvey {args.command}: interrupted", file=sys.stderr)
         return 130
+    _ignore_more_ctrl_c()  # done: a Ctrl-C while the interpreter shuts down changes nothing
     return 0
+
+
+def _ignore_more_ctrl_c() -> None:
+    """After the one line of an interruption, or the work: a burst of Ctrl-C (a key held down)
+    does not cut the exit short into a traceback or a death by signal. The command line only
+    (`ballsurvey._COMMAND_LINE`): `main` called from Python leaves the caller's Ctrl-C alone."""
+    import signal
+    import threading
+
+    command_line = getattr(sys.modules.get("ballsurvey"), "_COMMAND_LINE", False)
+    if command_line and threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)

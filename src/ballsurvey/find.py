@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .ball import Ball
+from .ball import Ball, tilt_error
 from .quadrature import launch_cycle
 from .simulate import simulate
 
@@ -69,6 +69,8 @@ def _turn(launch: dict, var: str, v: float, ball: Ball) -> float:
     """|Net turn per cycle| (deg) at launch[var] = v: quadrature, else integration; NaN if neither
     resolves a cycle (a steady launch, or one outside the model)."""
     kw = _launch_with(launch, var, v)
+    if tilt_error(kw["theta0_deg"], math.degrees(ball.flat_face_theta_rad)):
+        return math.nan  # outside the model (on the flat face, or at 90 deg): no value here
     try:
         q = launch_cycle(kw["theta0_deg"], kw["thetadot0"], kw["chidot0"], kw["phidot0"], ball)
     except (ValueError, ZeroDivisionError, FloatingPointError):

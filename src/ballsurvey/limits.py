@@ -14,6 +14,9 @@ import math
 MAX_LAUNCHES = 10**10
 #: most integration steps of one launch (T / dt)
 MAX_STEPS = 10**10
+#: longest duration of one launch (s): about 12 days of rolling; far beyond it the kernels'
+#: scaled time overflows (an adaptive method takes no step count to refuse it by)
+MAX_DURATION_S = 1e6
 #: most values on one axis of a sweep grid (each axis is an array in memory)
 MAX_AXIS_VALUES = 10**7
 #: most combinations of ball axes (each is one ball checked up front)
@@ -50,6 +53,10 @@ LAUNCH_BOUNDS = {"thetadot0": (MAX_RATE, "rad/s"), "chidot0": (MAX_RATE, "rad/s"
 CLASSIFY_INT_RANGES = {"min_cycles": (1, 10**4), "max_star_points": (2, 1000)}
 
 
+#: the largest finite float
+MAX_FLOAT = 1.7976931348623157e308
+
+
 class InputError(ValueError):
     """An input outside the rules: one line naming the input."""
 
@@ -76,6 +83,10 @@ def number(name: str, v, *, positive: bool = False, nonnegative: bool = False,
                 raise TypeError
         except TypeError:
             raise InputError(f"{name}: must be a number, got {type(v).__name__} {v!r}") from None
+    if isinstance(v, int) and not abs(v) <= MAX_FLOAT:  # a Python int past any float
+        digits = len(str(abs(v))) if abs(v) < 10**4000 else "over 4000"
+        raise InputError(f"{name}: must be within +-1.8e308, got a whole number of {digits} "
+                         "digits")
     if finite and not math.isfinite(v):
         raise InputError(f"{name}: must be finite, got {v!r}")
     if positive and not v > 0:
@@ -112,7 +123,7 @@ def step_count(T: float, dt: float, multiple: int = 1) -> int:
 
 def steps(T: float, dt: float, name_T: str = "T", name_dt: str = "dt") -> int:
     """Check a duration and step (0 < dt <= T, both finite) and the step count; returns it."""
-    T = number(name_T, T, positive=True)
+    T = number(name_T, T, positive=True, hi=MAX_DURATION_S)
     dt = number(name_dt, dt, positive=True)
     if dt > T:
         raise InputError(f"{name_dt}: must be <= T ({T:g} s), got {dt!r}")
@@ -180,6 +191,51 @@ def chunk_plan(shape, chunk, name: str = "chunk") -> int:
 
 def workers(n, name: str = "--workers") -> int:
     return number(name, n, integer=True, lo=1, hi=MAX_WORKERS)
+
+
+#: a ball a map can be made of: radius (m), gravity (m s-2), mass (kg), and the moments of
+#: inertia about G over M a^2 (a rigid body inside the sphere has them below 4; far below 1e-4
+#: the spin equations are stiff beyond any step). Outside them the launches only overflow.
+BALL_RANGES = {"a": (1e-4, 100.0, "m"), "g": (1e-2, 1000.0, "m s-2"), "M": (1e-6, 1e6, "kg")}
+INERTIA_RATIO = (1e-4, 4.0)
+
+
+def ball(values: dict, where: str = "ball") -> None:
+    """Check a ball's parameters (a dict of a, c, M, A, B, g, cut_height in SI) against
+    `BALL_RANGES` and `INERTIA_RATIO`."""
+    for k, (lo, hi, unit) in BALL_RANGES.items():
+        v = values[k]
+        if not lo <= v <= hi:
+            raise InputError(f"{where} {k}: must be within {lo:g}..{hi:g} {unit}, got {v!r}")
+    scale = values["M"] * values["a"] ** 2
+    lo, hi = INERTIA_RATIO
+    for k in ("A", "B"):
+        r = values[k] / scale
+        if not lo <= r <= hi:
+            raise InputError(f"{where} {k}: {k}/(M a^2) must be within {lo:g}..{hi:g}, got "
+                             f"{r:.3g} ({k} = {values[k]!r} kg m2)")
+
+
+#: dask schedulers a run can reach: protocol://host:port (no protocol: tcp)
+SCHEDULER_PROTOCOLS = ("tcp", "tls", "ws", "wss", "ucx")
+
+
+def scheduler(addr, name: str = "--scheduler") -> str:
+    """A running dask scheduler's address: [PROTOCOL://]HOST:PORT, PROTOCOL one of
+    `SCHEDULER_PROTOCOLS`, PORT 1..65535. Checked before anything starts."""
+    import re
+
+    if not isinstance(addr, str):
+        raise InputError(f"{name}: an address such as tcp://127.0.0.1:8786, got "
+                         f"{type(addr).__name__}")
+    m = re.fullmatch(r"(?:([A-Za-z0-9+.-]+)://)?(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9._-]+):(\d{1,5})",
+                     addr.strip())
+    if (not m or (m.group(1) or "tcp") not in SCHEDULER_PROTOCOLS
+            or not 1 <= int(m.group(3)) <= 65535):
+        raise InputError(f"{name}: {addr!r} is not a scheduler address; give "
+                         f"PROTOCOL://HOST:PORT with PROTOCOL one of "
+                         f"{', '.join(SCHEDULER_PROTOCOLS)} (e.g. tcp://127.0.0.1:8786)")
+    return addr.strip()
 
 
 def samples(n, name: str = "n_out") -> int:

@@ -107,8 +107,10 @@ def query_frame(ds: xr.Dataset, shape: str | None = None, n_sides: int | None = 
     cols["n_sides_error"] = err[idx].astype(float)
     cols["closure_m"] = closure[idx].astype(float)
     cols["theta_max_deg"] = th_max[idx].astype(float)
-    with np.errstate(invalid="ignore"):
-        cols["near_vertical"] = th_max[idx] > NEAR_VERTICAL_DEG
+    with np.errstate(invalid="ignore"):  # unknown (NA) where theta max is not known
+        near = pd.array(th_max[idx] > NEAR_VERTICAL_DEG, dtype="boolean")
+    near[np.isnan(th_max[idx].astype(float))] = pd.NA
+    cols["near_vertical"] = near
     df = pd.DataFrame(cols)
     df.attrs["units"] = {c: COLUMN_UNITS[c] for c in df.columns if c in COLUMN_UNITS}
     df.attrs["matched"] = len(df)

@@ -7,6 +7,8 @@ Files follow CF-1.10 (checked in the tests with the IOOS compliance-checker).
 from __future__ import annotations
 
 import math
+import threading
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -64,6 +66,39 @@ DEFAULT_VARIABLES = tuple(RESULT_VARIABLES)
 #: fill of float variables (cells never written); integer variables need none: the file is only
 #: assembled once every chunk is done
 FLOAT_FILL = np.nan
+
+
+#: the one lock around every netCDF4/HDF5 call the package makes (HDF5 as built for netCDF4 is not
+#: thread-safe: two threads in it at once crash the process). Reentrant in its thread.
+NETCDF_LOCK = threading.RLock()
+_held = threading.local()
+
+
+@contextmanager
+def netcdf_lock(direct: bool = False):
+    """Hold the package's netCDF lock (`NETCDF_LOCK`) for a block of netCDF4/HDF5 calls.
+
+    direct: the block calls netCDF4 itself (not through xarray); xarray's own HDF5 and netCDF-C
+    locks are then held too, so the block is also serialised with reads of a map that xarray
+    opened lazily, which take only those. Through xarray (direct=False) they are not taken here:
+    xarray takes them itself, and they do not nest."""
+    with NETCDF_LOCK:
+        depth = getattr(_held, "depth", 0)
+        if not direct or depth:
+            _held.depth = depth + bool(depth)
+            try:
+                yield
+            finally:
+                _held.depth = depth
+            return
+        from xarray.backends.locks import HDF5_LOCK, NETCDFC_LOCK
+
+        with NETCDFC_LOCK, HDF5_LOCK:
+            _held.depth = 1
+            try:
+                yield
+            finally:
+                _held.depth = 0
 
 
 def variable_attrs(name: str) -> dict:
@@ -136,7 +171,7 @@ def write_netcdf(path, spec, chunks: list, attrs: dict, get_part) -> None:
     from .sweep.spec import AXIS_LONG_NAMES, AXIS_UNITS, LAUNCH_AXES
 
     dims = spec.dims
-    with netCDF4.Dataset(path, "w", format="NETCDF4") as nc:
+    with netcdf_lock(direct=True), netCDF4.Dataset(path, "w", format="NETCDF4") as nc:
         nc.setncatts(attrs)
         if spec.kind == "grid":
             for k, vals in spec.axes.items():

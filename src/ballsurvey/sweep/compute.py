@@ -12,8 +12,9 @@ and a dask worker (one serial, GIL-free kernel) call it on the same chunks.
 from __future__ import annotations
 
 import math
+import threading
 import time
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 
 import numpy as np
 
@@ -23,6 +24,10 @@ from .spec import Spec, load_spec
 
 #: target wall time of one unit of work (s): Ctrl-C acts within about this
 UNIT_S = 0.5
+#: one parallel kernel call at a time in this process: sweeps run from several threads take
+#: turns (each call fills every core anyway), and numba's fallback threading layer
+#: ("workqueue", where neither OpenMP nor TBB is found) aborts the process on concurrent calls
+PARALLEL_LOCK = threading.Lock()
 
 
 class ChunkInterrupted(KeyboardInterrupt):
@@ -38,11 +43,12 @@ class ChunkInterrupted(KeyboardInterrupt):
 def compute_launches(spec: Spec, lo: int, hi: int, parallel: bool = True,
                      block: int | None = None) -> dict:
     """Integrate and label launches lo..hi-1 of a spec in one kernel call; {variable: 1-D array}."""
-    f = survey(launch_table(spec, lo, hi), T=spec.T, dt=spec.dt, method=spec.method,
-               rtol=spec.rtol, atol=spec.atol, block=block or spec.block,
-               observe_every=spec.observe_every,
-               cycles=spec.cycles if spec.mode == "period" else 0, thresholds=spec.thresholds,
-               parallel=parallel, backend=spec.backend)
+    with PARALLEL_LOCK if parallel else nullcontext():
+        f = survey(launch_table(spec, lo, hi), T=spec.T, dt=spec.dt, method=spec.method,
+                   rtol=spec.rtol, atol=spec.atol, block=block or spec.block,
+                   observe_every=spec.observe_every,
+                   cycles=spec.cycles if spec.mode == "period" else 0,
+                   thresholds=spec.thresholds, parallel=parallel, backend=spec.backend)
     return {k: np.asarray(f[k]) for k in spec.variables}
 
 

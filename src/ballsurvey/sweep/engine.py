@@ -30,6 +30,7 @@ import numpy as np
 from .. import limits
 from ..classify.labels import LABELS
 from ..limits import RunError
+from ..store import netcdf_lock
 from ..store import write_netcdf as _write_netcdf_store
 from .compute import ChunkInterrupted, compile_watch, compute_chunk, n_launches
 from .executors import DASK_WAIT_S, dask_client, run_dask, run_embedded
@@ -81,7 +82,7 @@ def verify_output(path: Path, spec: Spec) -> None:
     import netCDF4
 
     try:
-        with netCDF4.Dataset(path) as nc:
+        with netcdf_lock(direct=True), netCDF4.Dataset(path) as nc:
             ok = getattr(nc, "spec_digest", None) == spec.digest
             lab = nc.variables["label"]
             ok = ok and tuple(lab.shape) == tuple(spec.shape)
@@ -132,6 +133,9 @@ def _make_parent_dirs(out: Path) -> list:
     d = out.parent
     missing = []
     while not d.exists() and d != d.parent:
+        if d.name == "..":  # mkdir of a/.. would say "File exists"
+            raise OutputUnwritable(f"cannot write the output {out}: the folder {d.parent} does "
+                                   "not exist (the path steps out of it with '..')")
         missing.append(d)
         d = d.parent
     try:
@@ -248,7 +252,14 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
         def finished(k, result):
             lo, hi, _ = chunks[k]
             with _DeferSigint():
-                _write_part(parts, k, lo, hi, spec.digest, result)
+                try:
+                    _write_part(parts, k, lo, hi, spec.digest, result)
+                except OSError as exc:  # a full disk, a folder gone read-only
+                    kept = sum(chunks[j][1] - chunks[j][0] for j in saved)
+                    raise RunError(f"cannot save {_part_path(parts, k)}: "
+                                   f"{exc.strerror or exc}; {kept} of {spec.n_launches} "
+                                   f"launches are kept in {parts}: run again with --resume "
+                                   "once it can be written") from None
                 remove_partial(parts, k)
                 saved.add(k)
             if on_chunk is not None:
@@ -270,20 +281,26 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
                 if isinstance(exc, ChunkInterrupted) and exc.done > 0:
                     k = exc.chunk
                     lo, hi, _ = chunks[k]
-                    if exc.done >= hi - lo:
-                        _write_part(parts, k, lo, hi, spec.digest, exc.result)
-                        remove_partial(parts, k)
-                    else:
-                        write_partial(parts, k, lo, hi, spec.digest, exc.result, exc.done)
+                    try:
+                        if exc.done >= hi - lo:
+                            _write_part(parts, k, lo, hi, spec.digest, exc.result)
+                            remove_partial(parts, k)
+                        else:
+                            write_partial(parts, k, lo, hi, spec.digest, exc.result, exc.done)
+                    except OSError:  # not saved: those launches are not counted as kept
+                        state["done"] -= exc.done
                 # dask: each unsaved chunk's launches back in a row from its start
                 prefixes = getattr(exc, "prefixes", {})
-                for k, result in prefixes.items():
+                for k, result in list(prefixes.items()):
                     lo, hi, _ = chunks[k]
                     n = n_launches(result)
-                    if n >= hi - lo:  # whole (Ctrl-C came while it was being saved)
-                        finished(k, result)
-                    else:
-                        write_partial(parts, k, lo, hi, spec.digest, result, n)
+                    try:
+                        if n >= hi - lo:  # whole (Ctrl-C came while it was being saved)
+                            finished(k, result)
+                        else:
+                            write_partial(parts, k, lo, hi, spec.digest, result, n)
+                    except (OSError, RunError):  # not saved: not counted as kept
+                        del prefixes[k]
             if isinstance(exc, RunError):
                 raise
             if client is None:
@@ -306,8 +323,12 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
                 _write_part(parts, k, lo, hi, spec.digest, result)
                 return read_part(parts, k, spec, lo, hi)
 
-        out = assemble(spec, parts, chunks, command, get_part)
-        shutil.rmtree(parts)
+        try:
+            out = assemble(spec, parts, chunks, command, get_part)
+        except KeyboardInterrupt:  # every chunk is saved: only the assembly is left to do
+            raise SweepInterrupted(parts, spec.n_launches, spec.n_launches) from None
+        with _NoSigint():
+            shutil.rmtree(parts)
         if report is not None:
             report.update(wall_s=time.perf_counter() - t_start, compile_s=compile_s,
                           computed=spec.n_launches - n_resumed, resumed=n_resumed)

@@ -13,8 +13,13 @@ from contextlib import contextmanager
 from ..compose import warm_up
 from ..limits import RunError
 from .compute import compute_chunk, concat, n_launches
+from .provenance import code_digest
 from .spec import Spec
 
+#: what a script that starts local workers without a main guard is told
+UNGUARDED_HINT = ("in a script, run a sweep with workers from under "
+                  "`if __name__ == \"__main__\":` (worker processes import the script again)")
+UNGUARDED = f"ballsurvey: a dask worker process is importing the script: {UNGUARDED_HINT}"
 #: default bounded wait (s) for a dask scheduler or for workers to (re)appear
 DASK_WAIT_S = 30.0
 #: dask tasks per worker thread over the launches to do (so that no thread idles at the end
@@ -62,13 +67,16 @@ def run_embedded(spec: Spec, chunks: list, todo: list, finished, *, partials=Non
         finished(k, result)
 
 
-def _warm_worker():
-    """On a dask worker: one numba thread (workers are single-threaded), kernels compiled once."""
+def _warm_worker() -> str:
+    """On a dask worker: one numba thread (workers are single-threaded), kernels compiled once;
+    returns the digest of the worker's code (`provenance.code_digest`)."""
     import numba
+
+    from . import provenance
 
     numba.set_num_threads(1)
     warm_up()
-    return True
+    return provenance.code_digest()
 
 
 def run_dask(client, spec: Spec, chunks: list, todo: list, finished, wait_s: float, *,
@@ -90,7 +98,13 @@ def run_dask(client, spec: Spec, chunks: list, todo: list, finished, wait_s: flo
     lost = (CancelledError, CommClosedError, KilledWorker, OSError, TimeoutError)
     resume_hint = "finished chunks are kept: run again with --resume"
     try:
-        client.run(_warm_worker)
+        codes = client.run(_warm_worker)
+        other = {w: c for w, c in codes.items() if c != code_digest()}
+        if other:
+            w, c = next(iter(other.items()))
+            raise RunError(f"the dask worker {w} runs other ballsurvey code (code {str(c)[:12]};"
+                           f" this is code {code_digest()[:12]}): its launches could differ; "
+                           f"install the same ballsurvey on every worker ({resume_hint})")
         ranges = task_ranges(chunks, todo, sum(client.nthreads().values()),
                              {k: n_launches(v) for k, v in partials.items()})
         futs = {client.submit(compute_chunk, spec.text, spec.source, a, b, False, unit=b - a,
@@ -203,7 +217,7 @@ def dask_client(scheduler: str | None = None, workers: int | None = None,
     if not scheduler and not workers:
         yield None
         return
-    from distributed import Client, LocalCluster
+    from distributed import Client
 
     cluster = None
     if scheduler:
@@ -213,20 +227,64 @@ def dask_client(scheduler: str | None = None, workers: int | None = None,
             raise RunError(f"cannot reach the dask scheduler {scheduler} within {wait_s:g} s "
                            f"({type(exc).__name__})") from None
     else:
-        # no dashboard, and the scheduler's small HTTP server on a free port (by default it
-        # takes 8787 and warns when that is busy); the cluster's own logs only for errors
+        # a Ctrl-C at the terminal reaches every process of the group: worker processes that
+        # are starting (importing) would print a traceback each. They start with SIGINT
+        # ignored, which they inherit; this process ignores it for those seconds too.
+        with _ignoring_sigint():
+            cluster, client = _local_cluster(workers)
+    try:
+        yield client
+    finally:
+        with _ignoring_sigint():  # closing is not cut short into a traceback
+            client.close()
+            if cluster is not None:
+                cluster.close()
+
+
+@contextmanager
+def _ignoring_sigint():
+    """SIGINT ignored in this process (and inherited so by processes started meanwhile); main
+    thread only, else nothing changes."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, old)
+
+
+def _local_cluster(workers: int):
+    """(cluster, client): a local cluster of `workers` single-threaded processes."""
+    import multiprocessing
+
+    from distributed import Client, LocalCluster
+
+    if getattr(multiprocessing.current_process(), "_inheriting", False):
+        # a worker process starting re-runs the script's top level: unguarded, it would
+        # start a cluster of its own; it stops, and the run below says why
+        raise SystemExit(UNGUARDED)
+    # no dashboard, and the scheduler's small HTTP server on a free port (by default it
+    # takes 8787 and warns when that is busy); the cluster's own logs only for errors
+    try:
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                host="127.0.0.1", dashboard_address=None,
                                scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
                                silence_logs=logging.ERROR)
+    except Exception as exc:  # noqa: BLE001 - distributed raises many kinds; one line
+        raise RunError(f"the local dask cluster of {workers} workers did not start "
+                       f"({type(exc).__name__}: {str(exc)[:120]}); {UNGUARDED_HINT}") from None
+    try:
         client = Client(cluster)
         # a Ctrl-C at the terminal reaches every process of the group: the workers of this
         # cluster leave it to this process, which keeps what came back and closes them (a
         # worker plugin: a worker started again after a loss ignores it too)
         client.register_plugin(_ignore_interrupts_plugin())
-    try:
-        yield client
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+    except BaseException:
+        cluster.close()
+        raise
+    return cluster, client

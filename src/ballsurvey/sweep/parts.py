@@ -22,9 +22,10 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..limits import InputError
+from ..limits import InputError, RunError
 from ..store import RESULT_VARIABLES
 from .plan import plan_chunks
+from .provenance import code_digest
 from .spec import Spec
 
 PARTS_SUFFIX = ".parts"
@@ -252,14 +253,32 @@ def remove_partial(parts: Path, k: int) -> None:
         pass
 
 
-def _existing_digest(path: Path) -> str | None:
+def _existing_digests(path: Path) -> tuple:
+    """(spec digest, code digest, source) recorded in a map; None for what it lacks."""
     import netCDF4
 
+    from ..store import netcdf_lock
+
     try:
-        with netCDF4.Dataset(path) as nc:
-            return getattr(nc, "spec_digest", None)
+        with netcdf_lock(direct=True), netCDF4.Dataset(path) as nc:
+            return tuple(getattr(nc, k, None) for k in ("spec_digest", "code_digest", "source"))
     except OSError:
-        return None
+        return None, None, None
+
+
+def _existing_digest(path: Path) -> str | None:
+    return _existing_digests(path)[0]
+
+
+def _code_words(code, version=None) -> str:
+    """'ballsurvey 0.1.0, code 1a2b3c4d5e6f' for a recorded code digest (and version)."""
+    if not isinstance(code, str) or not code:
+        return f"{version or 'an older ballsurvey'}, no code digest recorded"
+    return f"{version or 'ballsurvey'}, code {code[:12]}"
+
+
+def _this_code() -> str:
+    return _code_words(code_digest(), f"ballsurvey {__version__}")
 
 
 def _backend_hint(spec: Spec, digest) -> str:
@@ -280,8 +299,38 @@ def _backend_hint(spec: Spec, digest) -> str:
 
 
 def output_is_current(spec: Spec) -> bool:
-    """True when the spec's output file exists and was made by this same spec."""
-    return spec.output.is_file() and _existing_digest(spec.output) == spec.digest
+    """True when the spec's output file exists and was made by this same spec and this same code
+    (`provenance.code_digest`)."""
+    if not spec.output.is_file():
+        return False
+    digest, code, _ = _existing_digests(spec.output)
+    return digest == spec.digest and code == code_digest()
+
+
+def existing_output(spec: Spec, *, force: bool) -> None:
+    """What an existing output means for a run: nothing when there is none or with --force;
+    UpToDate when this spec and this code made it; else OutputRefused saying why."""
+    out = spec.output
+    if force or not (out.exists() or out.is_symlink()):
+        return
+    digest, code, source = _existing_digests(out)
+    if digest == spec.digest and code == code_digest():
+        raise UpToDate(f"{out} is up to date (made by this spec and this code); --force "
+                       "recomputes it")
+    keep = (" (--force --resume keeps the saved parts)"
+            if (parts_dir(out) / MANIFEST).is_file() else "")
+    if digest is None:
+        raise OutputRefused(f"{out} exists and is not a map written by a sweep (no spec digest "
+                            f"in it, or not netCDF); use --force to overwrite it{keep}")
+    if code != code_digest():  # its spec digest may be of another scheme: not compared
+        version = source.split(" (")[0] if isinstance(source, str) else None
+        which = "this spec" if digest == spec.digest else "a spec"
+        raise OutputRefused(f"{out} was made by {which} with other code "
+                            f"({_code_words(code, version)}; this is {_this_code()}): its results "
+                            f"may differ from this code's; --force recomputes it{keep}")
+    hint = _backend_hint(spec, digest)
+    raise OutputRefused(f"{out} exists, made by another spec{hint}; use --force to overwrite "
+                        f"it{keep}")
 
 
 def check_output_path(out: Path) -> None:
@@ -291,6 +340,11 @@ def check_output_path(out: Path) -> None:
         raise InputError(f"output {str(out)!r}: must be a file name ending in .nc")
     if out.is_dir():
         raise OutputRefused(f"output {out} is a directory; give a file name ending in .nc")
+    ancestors = [*Path(os.path.abspath(out)).parents, *out.resolve().parents]  # links too
+    for d in ancestors:  # a sweep's own folders: removed when it ends
+        if d.name.endswith(".nc" + PARTS_SUFFIX) or re.match(r"^\..+\.nc\.tmp-", d.name):
+            raise OutputRefused(f"output {out} is inside {d}, a sweep's working folder that is "
+                                "removed when that sweep ends; write it elsewhere")
     parts = parts_dir(out)
     if parts.is_symlink() or (parts.exists() and not parts.is_dir()):
         raise OutputRefused(f"{parts} is not a directory a sweep made (a link or a file); "
@@ -318,55 +372,114 @@ def _clean_leftovers(out: Path, parts: Path) -> None:
 
 def _write_manifest(parts: Path, spec: Spec, n_chunks: int) -> None:
     man = {"format": PART_FORMAT, "spec_digest": spec.digest, "version": __version__,
-           "spec": spec.text, "shape": list(spec.shape), "chunk": spec.chunk,
+           "code_digest": code_digest(), "spec": spec.text, "shape": list(spec.shape),
+           "chunk": spec.chunk,
            "n_chunks": n_chunks}
     _atomic_write(parts, parts / MANIFEST, ".manifest-", ".tmp",
                   lambda f: f.write(json.dumps(man).encode()))
 
 
+def _discard_parts(parts: Path, notice) -> None:
+    n = len(list(parts.glob("chunk-*.npz"))) + len(list(parts.glob("partial-*.npz")))
+    shutil.rmtree(parts)
+    if n:
+        notice(f"discarded {n} saved part{'s' if n != 1 else ''} in {parts} (--force without "
+               "--resume starts over)")
+
+
+def _check_manifest(parts: Path, spec: Spec) -> dict:
+    """The parts' manifest when they can be resumed by this spec and this code; else
+    OutputRefused saying why and what to do."""
+    discard = "--force without --resume discards them and starts over"
+    try:
+        man = json.loads((parts / MANIFEST).read_text())
+        if not isinstance(man, dict):
+            raise ValueError
+    except (OSError, ValueError):
+        raise OutputRefused(f"{parts} has no readable manifest; {discard}") from None
+    if man.get("code_digest") != code_digest():  # first: another code may digest specs otherwise
+        version = man.get("version")
+        was = _code_words(man.get("code_digest"), version and f"ballsurvey {version}")
+        raise OutputRefused(
+            f"{parts} was saved by other code ({was}; "
+            f"this is {_this_code()}): its launches may differ from this code's; refusing to mix "
+            f"results ({discard})")
+    if man.get("spec_digest") != spec.digest:
+        hint = _backend_hint(spec, man.get("spec_digest"))
+        raise OutputRefused(f"{parts} belongs to a different spec{hint}; refusing to mix "
+                            f"results ({discard})")
+    if man.get("format") != PART_FORMAT or not isinstance(man.get("chunk"), int):
+        raise OutputRefused(f"{parts} has no chunk plan (made by an older ballsurvey); {discard}")
+    if list(man.get("shape", [])) != list(spec.shape):
+        raise OutputRefused(f"{parts}: recorded grid {man.get('shape')} is not the "
+                            f"spec's {list(spec.shape)}; {discard}")
+    return man
+
+
+def tidy_finished(spec: Spec, notice=None) -> None:
+    """The output is up to date: remove what a run that ended between writing it and cleaning
+    up left (its temporary folder, its parts), unless another sweep holds the output's lock."""
+    notice = notice or _notice
+    lock = OutputLock(spec.output)
+    try:
+        lock.acquire()
+    except (OutputRefused, OutputUnwritable):
+        return
+    try:
+        _tidy_finished(spec, notice)
+    finally:
+        lock.release()
+
+
+def _tidy_finished(spec: Spec, notice) -> None:
+    parts = parts_dir(spec.output)
+    _clean_leftovers(spec.output, parts)
+    if parts.is_dir() and not parts.is_symlink():
+        try:
+            _check_manifest(parts, spec)
+        except OutputRefused:
+            return  # not this run's: left alone
+        shutil.rmtree(parts, ignore_errors=True)
+        notice(f"removed {parts}, left by a run that ended after writing {spec.output}")
+
+
 def prepare_output(spec: Spec, *, resume: bool, force: bool, notice=None) -> tuple[Spec, Path, set]:
     """Check what is on disk (the caller holds the output's lock); returns (spec with the chunk
-    plan to use, parts dir, chunks already done and verified). Refuses to mix specs."""
+    plan to use, parts dir, chunks already done and verified). Refuses to mix specs or code.
+
+    resume: continue from the saved parts (this spec's and this code's, else refused); force:
+    overwrite an existing output. Both: continue from the parts and overwrite the output at the
+    end. force alone discards saved parts (and says so)."""
     notice = notice or _notice
     out = spec.output
     parts = parts_dir(out)
-    if out.exists() and not force:
-        if output_is_current(spec):
-            raise UpToDate(f"{out} is up to date (made by this spec); --force recomputes it")
-        hint = _backend_hint(spec, _existing_digest(out))
-        raise OutputRefused(f"{out} exists, made by another spec{hint}; use --force to overwrite "
-                            "it")
+    try:
+        existing_output(spec, force=force)
+    except UpToDate:
+        _tidy_finished(spec, notice)
+        raise
     _clean_leftovers(out, parts)
+    if parts.is_dir() and not parts.is_symlink() and not any(parts.iterdir()):
+        parts.rmdir()  # made by a run killed before it wrote anything in it: nothing to resume
     if parts.exists():
-        if force:
-            shutil.rmtree(parts)
-        elif not resume:
-            raise OutputRefused(f"an interrupted sweep is in {parts}; use --resume to continue "
-                                  "it or --force to start over")
-        else:
-            try:
-                man = json.loads((parts / MANIFEST).read_text())
-                if not isinstance(man, dict):
-                    raise ValueError
-            except (OSError, ValueError):
-                raise OutputRefused(f"{parts} has no readable manifest; use --force") from None
-            if man.get("spec_digest") != spec.digest:
-                hint = _backend_hint(spec, man.get("spec_digest"))
-                raise OutputRefused(f"{parts} belongs to a different spec{hint}; refusing to mix "
-                                    "results (use --force to discard it)")
-            if man.get("format") != PART_FORMAT or not isinstance(man.get("chunk"), int):
-                raise OutputRefused(f"{parts} has no chunk plan (made by an older ballsurvey); "
-                                      "use --force to start over")
-            if list(man.get("shape", [])) != list(spec.shape):
-                raise OutputRefused(f"{parts}: recorded grid {man.get('shape')} is not the "
-                                      f"spec's {list(spec.shape)}; use --force")
+        if resume:
+            man = _check_manifest(parts, spec)
             if man["chunk"] != spec.chunk:
                 notice(f"resuming with the recorded chunk plan (chunk = {man['chunk']}); "
                        f"chunk = {spec.chunk} is ignored")
                 spec = replace(spec, chunk=man["chunk"])
+        elif force:
+            _discard_parts(parts, notice)
+        else:
+            raise OutputRefused(f"an interrupted sweep is in {parts}; use --resume to continue "
+                                  "it or --force to start over")
     parts.mkdir(exist_ok=True)
     if not (parts / MANIFEST).exists():
-        _write_manifest(parts, spec, len(plan_chunks(spec.shape, spec.chunk)))
+        try:
+            _write_manifest(parts, spec, len(plan_chunks(spec.shape, spec.chunk)))
+        except OSError as exc:
+            raise RunError(f"cannot write {parts / MANIFEST}: {exc.strerror or exc}; nothing "
+                           "was computed") from None
     chunks = plan_chunks(spec.shape, spec.chunk)
     done = set()
     for p in sorted(parts.glob("chunk-*.npz")):

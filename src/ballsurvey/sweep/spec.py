@@ -240,7 +240,7 @@ def _override_run(src, text: str, doc: dict, run: dict) -> tuple[str, dict]:
         new_text = "\n".join(lines)
         try:
             new_doc = tomllib.loads(new_text)
-        except tomllib.TOMLDecodeError:
+        except ValueError:  # TOMLDecodeError is one
             new_doc = None
 
         def canon(d):  # NaN equals NaN here: validation, not this check, refuses it
@@ -270,6 +270,8 @@ def load_spec(path, *, text: str | None = None, run: dict | None = None) -> Spec
         doc = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SpecError(f"{src}: not valid TOML: {exc}") from None
+    except ValueError as exc:  # an integer of more digits than Python converts
+        raise SpecError(f"{src}: not a usable spec: {str(exc).split(';')[0]}") from None
     if run:
         text, doc = _override_run(src, text, doc, run)
     _unknown(src, "", doc, TOP_KEYS)
@@ -280,6 +282,7 @@ def load_spec(path, *, text: str | None = None, run: dict | None = None) -> Spec
     if not isinstance(title, str):
         _err(src, "title", "must be a string")
     base_ball = _ball(src, doc.get("ball", {"preset": "paper"}))
+    _limit(src, limits.ball, base_ball.as_dict(), "[ball]")
 
     # ---- launches --------------------------------------------------------------------------
     if ("launch" in doc) == ("points" in doc):
@@ -312,6 +315,8 @@ def load_spec(path, *, text: str | None = None, run: dict | None = None) -> Spec
                 b = replace(base_ball, **dict(zip(ball_axes, map(float, combo))))
             except ValueError as exc:
                 _err(src, "[launch] " + "/".join(ball_axes), f"gives an invalid ball: {exc}")
+            _limit(src, limits.ball, b.as_dict(),
+                   "[launch] " + "/".join(ball_axes) + " gives a ball whose")
             flat.append(math.degrees(b.flat_face_theta_rad))
         _check_tilts(src, "[launch] theta0_deg", axes["theta0_deg"], flat)
     else:
@@ -327,6 +332,8 @@ def load_spec(path, *, text: str | None = None, run: dict | None = None) -> Spec
             name = pt.get("name", f"point{i + 1}")
             if not isinstance(name, str) or not name:
                 _err(src, f"[[points]] #{i + 1} name", "must be a non-empty string")
+            if not name.isprintable():  # netCDF ends a string at NUL: "a" and "a\0" are one
+                _err(src, f"[[points]] #{i + 1} name", f"must be printable text, got {name!r}")
             cols["name"].append(name)
             for k in LAUNCH_AXES:
                 if k not in pt:
@@ -384,6 +391,10 @@ def load_spec(path, *, text: str | None = None, run: dict | None = None) -> Spec
         thresholds = Thresholds.from_mapping(classify)
     except ValueError as exc:
         raise SpecError(f"{src}: {exc}") from None
+    if mode == "period" and cycles < thresholds.min_cycles:
+        _err(src, "[run] cycles", f"period mode integrates {cycles} theta cycle(s), fewer than "
+             f"the {thresholds.min_cycles} a label needs ([classify] min_cycles): every launch "
+             "would be unresolved")
 
     out = doc.get("output", {})
     _unknown(src, "[output] ", out, OUTPUT_KEYS)
@@ -402,11 +413,42 @@ def load_spec(path, *, text: str | None = None, run: dict | None = None) -> Spec
     if not 0 <= compression <= 9:
         _err(src, "[output] compression", f"must be 0..9, got {compression}")
 
-    # the digest is of the parsed content: comments and layout may change, the sweep may not
-    digest = hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()
-    return Spec(text=text, source=src, title=title, ball=base_ball, kind=kind, axes=axes,
+    spec = Spec(text=text, source=src, title=title, ball=base_ball, kind=kind, axes=axes,
                 points=points, chi0_deg=chi0, T=T, dt=dt, method=method, rtol=rtol, atol=atol,
                 mode=mode, cycles=cycles,
                 observe_every=observe_every, block=block, chunk=chunk, thresholds=thresholds,
-                output=Path(ofile), variables=variables, compression=compression, digest=digest,
+                output=Path(ofile), variables=variables, compression=compression,
                 backend=backend)
+    return replace(spec, digest=spec_digest(spec))
+
+
+def _canon(v):
+    """A value for the digest: every number as the repr of its float (20 and 20.0 alike, -0.0 as
+    0.0), arrays and tuples as lists."""
+    if isinstance(v, np.ndarray):
+        v = v.tolist()
+    if isinstance(v, dict):
+        return {str(k): _canon(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_canon(x) for x in v]
+    if isinstance(v, bool) or v is None or isinstance(v, str):
+        return v
+    if isinstance(v, (int, float, np.number)):
+        return repr(float(v) + 0.0)
+    return str(v)
+
+
+def spec_digest(spec: Spec) -> str:
+    """SHA-256 of what a spec asks for, from its parsed and completed values: comments, layout,
+    how a number is written (20 or 20.0), defaults written out or left to apply and the order of
+    [output] variables change nothing. The chunk plan and the output file are not part of it (a
+    map's results do not depend on them)."""
+    what = {"title": spec.title, "ball": spec.ball.as_dict(), "kind": spec.kind,
+            "axes": [[k, v] for k, v in spec.axes.items()],
+            "points": [[k, v] for k, v in spec.points.items()], "chi0_deg": spec.chi0_deg,
+            "T": spec.T, "dt": spec.dt, "method": spec.method, "rtol": spec.rtol,
+            "atol": spec.atol, "mode": spec.mode, "cycles": spec.cycles,
+            "observe_every": spec.observe_every, "block": spec.block,
+            "thresholds": spec.thresholds.as_dict(), "variables": sorted(spec.variables),
+            "compression": spec.compression, "backend": spec.backend}
+    return hashlib.sha256(json.dumps(_canon(what), sort_keys=True).encode()).hexdigest()
