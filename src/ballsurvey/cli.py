@@ -331,6 +331,51 @@ def _cmd_path(args):
           f"{a['corner_kind']}; wrote {out}")
 
 
+def _ball_arg(args):
+    """The ball of --ball / --cut-height / --spec (`sweep.spec.ball_from_options`)."""
+    from .sweep.spec import ball_from_options
+
+    cut = _opt("--cut-height", args.cut_height, nonnegative=True)
+    return ball_from_options(args.ball, cut, args.spec)
+
+
+def _add_ball_options(parser) -> None:
+    g = parser.add_argument_group("the ball (default: the paper's truncated billiard ball)")
+    g.add_argument("--ball", metavar="K=V,...",
+                   help="the ball as a spec's [ball] gives it, SI: a=..,c=..,M=..,A=..,B=.. "
+                        "(m, m, kg, kg m^2, kg m^2; also g=, cut_height=) or a=..,cut_height=..,"
+                        "M=.. for a truncated uniform sphere")
+    g.add_argument("--cut-height", type=float, metavar="METRES",
+                   help="height (m) of the cap cut off: alone, from the paper's sphere (a = 25.4 "
+                        "mm, M = 98.4 g), c, A, B from the geometry; with --ball, its cap")
+    g.add_argument("--spec", metavar="SPEC.toml", help="use the [ball] of this sweep spec")
+
+
+def _cmd_fit(args):
+    import json
+
+    from .fit import PARAMS, UNITS, fit_track, plot_fit, read_track
+
+    out = _out_file("-o/--output", args.output, ".png")
+    probe = _opt("--probe-m", args.probe_m, positive=True, hi=1.0)
+    ball = _ball_arg(args)
+    track = read_track(args.track, probe_m=probe)
+    fit = fit_track(track, ball)
+    if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        plot_fit(track, fit, out, ball=ball)
+    if args.format == "json":
+        keys = [k for p in PARAMS for k in (p, p + "_err")] + ["rms_m", "label"]
+        print(json.dumps({k: fit[k] for k in keys}))
+    else:
+        for k in PARAMS:
+            print(f"{k:11s} {fit[k]:+.6g} +- {fit[k + '_err']:.2g} {UNITS[k]}")
+        print(f"rms_m       {fit['rms_m']:.3g} m (position residual per coordinate)")
+        print(f"label       {fit['label']}")
+        print(f"({fit['n_samples']} samples, {fit['survey_launches']} launches surveyed, "
+              f"{fit['seconds']:.1f} s)" + (f"; wrote {out}" if out else ""))
+
+
 def _cmd_query(args):
     from .query import DEFAULT_LIMIT, format_table, query
 
@@ -668,6 +713,20 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("-o", "--output", default="results/path.png", metavar="FILE.png",
                    help="PNG file")
     q.set_defaults(func=_cmd_path)
+
+    ft = cmd("fit", help="find the launch that reproduces a measured track (CSV)")
+    ft.add_argument("track", metavar="TRACK.csv",
+                    help="header row and columns t (s) and x, y (m, centre of mass) or x_tip, "
+                         "y_tip, x_base, y_base (m, with --probe-m); optionally theta_deg (deg) "
+                         "and chidot (rad/s)")
+    ft.add_argument("--probe-m", type=float, metavar="METRES",
+                    help="probe length (m), for a track of the probe's tip and base")
+    ft.add_argument("-o", "--output", metavar="FILE.png", help="also draw track and fit (PNG)")
+    ft.add_argument("--format", choices=("text", "json"), default="text",
+                    help="json: keys theta0_deg, thetadot0, chidot0, phidot0, chi0_deg, x0, y0 "
+                         "(deg, rad/s, m; each with _err, one standard deviation), rms_m, label")
+    _add_ball_options(ft)
+    ft.set_defaults(func=_cmd_fit)
 
     r = cmd("query", help="list the launches of a map that give a shape, best first")
     r.add_argument("result", help="a ballsurvey netCDF map (.nc)")
