@@ -308,23 +308,33 @@ def _cmd_plot(args):
 def _cmd_path(args):
 
     from . import limits
-    from .plot import plot_path
+    from .plot import BODY_POINTS, plot_forces, plot_path
     from .simulate import check_simulate_inputs, simulate
 
     out = _out_file("-o/--output", args.output, ".png")
     for name in ("theta0_deg", "thetadot0", "chidot0", "phidot0", "chi0_deg"):
         _launch_opt("--" + name.replace("_", "-"), name, getattr(args, name))
+    show = [w.strip() for w in (args.show or "").split(",") if w.strip()]
+    for w in show:
+        if w not in BODY_POINTS:
+            raise UserError(f"--show: unknown body point {w!r}; known: {', '.join(BODY_POINTS)}")
+    probe = _opt("--probe-m", args.probe_m, nonnegative=True, hi=1.0)
+    ball = _ball_arg(args)
     try:
         limits.steps(args.T, args.dt, "--T", "--dt")
         limits.samples(args.n_out, "--n-out")
         check_simulate_inputs(args.theta0_deg, args.thetadot0, args.chidot0, args.phidot0, args.T,
-                              args.dt, args.chi0_deg, n_out=args.n_out)
+                              args.dt, args.chi0_deg, n_out=args.n_out, ball=ball)
     except limits.InputError as exc:
         raise UserError(str(exc)) from None
     ds = simulate(args.theta0_deg, args.thetadot0, args.chidot0, args.phidot0, args.T, dt=args.dt,
-                  chi0_deg=args.chi0_deg, n_out=args.n_out)
+                  chi0_deg=args.chi0_deg, n_out=args.n_out, ball=ball, probe_m=probe)
     out.parent.mkdir(parents=True, exist_ok=True)
-    plot_path(ds, out)
+    plot_path(ds, out, ball=ball, show=show)
+    if args.forces:
+        f_out = out.with_name(out.stem + "-forces.png")
+        plot_forces(ds, f_out, title=f"net force and torque about G: {ds.attrs['label']}")
+        out = f"{out} and {f_out}"
     a = ds.attrs
     print(f"{a['label']}: n_sides {a['n_sides']:.4f}, turn per cycle {a['turn_per_cycle_deg']:.3f} "
           f"deg, theta {a['theta_min_deg']:.2f}..{a['theta_max_deg']:.2f} deg, corners "
@@ -712,6 +722,16 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--n-out", type=int, default=4001, metavar="N", help="samples kept")
     q.add_argument("-o", "--output", default="results/path.png", metavar="FILE.png",
                    help="PNG file")
+    q.add_argument("--show", metavar="POINTS",
+                   help="also draw body points, comma-separated: face (centre of the flat face), "
+                        "probe (its tip), contact (the contact point), as the paper's Fig. 4a")
+    q.add_argument("--probe-m", type=float, default=0.0254, metavar="METRES",
+                   help="probe length (m) on the flat face (the paper does not give it; one ball "
+                        "radius)")
+    q.add_argument("--forces", action="store_true",
+                   help="also draw the net force (N) and torque about G (N m) against time, as "
+                        "the paper's Figs. 4b, 7b, into FILE-forces.png")
+    _add_ball_options(q)
     q.set_defaults(func=_cmd_path)
 
     ft = cmd("fit", help="find the launch that reproduces a measured track (CSV)")

@@ -203,11 +203,13 @@ def _dense_rates(ds: xr.Dataset, ball: Ball, max_samples: int = 1_000_001):
     return t, ds.chidot.values, ds.phidot.values
 
 
-def plot_path(ds: xr.Dataset, out, ball: Ball | None = None, title: str | None = None):
+def plot_path(ds: xr.Dataset, out, ball: Ball | None = None, title: str | None = None,
+              show=()):
     """One launch like the paper's figures: path coloured by theta with corners marked and the
     label in the title; theta(t); chidot and phidot (t) at every integration step, drawn through
     their extremes so the spin spikes near theta = 90 deg keep their height; friction ratio and
-    normal force (t). Legends sit outside the data; no line hides another."""
+    normal force (t). Legends sit outside the data; no line hides another. show: body points
+    drawn beside the centre of mass (`draw_body_points`: face, probe, contact)."""
     from matplotlib.collections import LineCollection
 
     ball = ball or Ball.paper()
@@ -227,6 +229,7 @@ def plot_path(ds: xr.Dataset, out, ball: Ball | None = None, title: str | None =
     if len(ci):
         ax.plot(x[ci], y[ci], "o", ms=5, mfc="none", mec="crimson", label="corners", zorder=3)
     ax.plot(x[0], y[0], "k^", ms=7, label="start", zorder=3)
+    draw_body_points(ax, ds, show)
     ax.set_aspect("equal", adjustable="datalim")
     ax.autoscale_view()
     ax.set_xlabel("x (m)")
@@ -263,3 +266,47 @@ def plot_path(ds: xr.Dataset, out, ball: Ball | None = None, title: str | None =
                  fontsize=11)
     fig.savefig(out, dpi=110)
     return out
+
+
+# ----------------------------------------------------------------------------------------------
+#: body points `path --show` draws: name -> (x, y variables of `simulate`, colour, legend)
+BODY_POINTS = {"face": ("x_face", "y_face", "tab:blue", "centre of the flat face"),
+               "probe": ("x_tip", "y_tip", "black", "tip of the probe"),
+               "contact": ("x_contact", "y_contact", "tab:gray", "contact point")}
+
+
+def draw_body_points(ax, ds: xr.Dataset, show=()) -> None:
+    """Paths of body points of a `simulate` Dataset on the plane's axes (Fig. 4a: centre of
+    mass, centre of the flat face, tip of the probe); show: names of BODY_POINTS."""
+    for name in show:
+        if name not in BODY_POINTS:
+            raise InputError(f"show: unknown body point {name!r}; known: "
+                             f"{', '.join(BODY_POINTS)}")
+        xv, yv, colour, text = BODY_POINTS[name]
+        ax.plot(ds[xv].values, ds[yv].values, color=colour, lw=0.8, label=text, zorder=1)
+
+
+def plot_forces(ds: xr.Dataset, out=None, t_range=None, title: str | None = None) -> Figure:
+    """The net force (N; friction Fx, Fy and the vertical Fz = N - M g) and the torque about G
+    (N m) against time, the paper's Figs. 4b, 7b and 10, from a `simulate` Dataset; t_range:
+    (start, stop) in s. Returns the Figure; writes it to `out` when given."""
+    if t_range is not None:
+        ds = ds.sel(time=slice(*t_range))
+    t = ds.time.values
+    fig = Figure(figsize=(8, 5.5), layout="constrained")
+    axf, axt = fig.subplots(2, 1, sharex=True)
+    for k, colour in (("Fx", "tab:blue"), ("Fy", "tab:orange"), ("Fz", "tab:green")):
+        axf.plot(t, ds[k].values, color=colour, lw=1.2, label=k.replace("F", "F_"))
+    axf.set_ylabel("net force (N)")
+    for k, colour in (("tau_x", "tab:blue"), ("tau_y", "tab:orange"), ("tau_z", "tab:green")):
+        axt.plot(t, ds[k].values, color=colour, lw=1.2, label=k)
+    axt.set_ylabel("torque about G (N m)")
+    axt.set_xlabel("t (s)")
+    for ax in (axf, axt):
+        ax.axhline(0.0, color="0.7", lw=0.6, zorder=0)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False)
+    if title:
+        fig.suptitle(title, fontsize=11)
+    if out is not None:
+        fig.savefig(out, dpi=110)
+    return fig

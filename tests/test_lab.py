@@ -1,0 +1,111 @@
+"""Body points, forces and torques of `simulate`, judged from independent computations: scipy's
+rotations of the truncated ball's geometry, the fixed-frame integration, the steady circle's closed
+forms (Eqs. 32-40) and finite differences of the integrated motion (M dv/dt = F, dL/dt = tau)."""
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from ballsurvey.simulate import simulate
+from ballsurvey.synthetic import fixed_frame_states
+
+PROBE = 0.03
+
+
+@pytest.fixture(scope="module")
+def square(ball):
+    """Fig. 12a for 1.5 s, densely sampled (dt 5e-5 s, every step kept)."""
+    return simulate(-5.0, 0.0, 4.05, -3.0, T=1.5, dt=5e-5, n_out=30001, ball=ball,
+                    probe_m=PROBE)
+
+
+def test_body_points_against_rotated_geometry_and_the_fixed_frame_integration(ball, square):
+    ds = square.isel(time=slice(None, None, 300))
+    th, ch = ds.theta.values, ds.chi.values
+    # body frame at theta = chi = 0: xi = x, eta = y (the symmetry axis, C -> G), zeta = z; the
+    # ball tilts by -theta about xi, then turns by chi about z (Euler angles, Eq. 3)
+    rot = Rotation.from_euler("ZX", np.column_stack([ch, -th]))
+    a, c, h = ball.a, ball.c, ball.cut_height
+    g = np.column_stack([ds.x.values, ds.y.values, np.zeros(th.size)])
+    centre = g - rot.apply([0.0, c, 0.0])
+    centre[:, 2] = a  # the sphere's centre stands a above the table
+    want = {"face": centre + rot.apply([0.0, -(a - h), 0.0]),
+            "tip": centre + rot.apply([0.0, -(a - h) - PROBE, 0.0]),
+            "contact": centre - [0.0, 0.0, a]}
+    for name, w in want.items():
+        assert np.allclose(ds[f"x_{name}"], w[:, 0], atol=1e-12, rtol=0), name
+        assert np.allclose(ds[f"y_{name}"], w[:, 1], atol=1e-12, rtol=0), name
+        if name != "contact":
+            assert np.allclose(ds[f"z_{name}"], w[:, 2], atol=1e-12, rtol=0), name
+    # G's height from the rotation: a + c eta_z
+    assert np.allclose(ds.z_face + (a - h + c) * rot.apply([0, 1, 0])[:, 2],
+                       a + c * rot.apply([0, 1, 0])[:, 2], atol=1e-12)
+    # the same points from another integration with no Euler angles (axis e as a vector)
+    v = fixed_frame_states(-5.0, 0.0, 4.05, -3.0, 0.0, 0.0, 0.0, ds.time.values, ball)
+    e = v[:, 2:5] / np.linalg.norm(v[:, 2:5], axis=1, keepdims=True)
+    tip = v[:, 0:2] * a - (c + a - h + PROBE) * e[:, :2]
+    assert np.allclose(ds.x_tip, tip[:, 0], atol=2e-6) and np.allclose(ds.y_tip, tip[:, 1],
+                                                                       atol=2e-6)
+
+
+def test_fig4a_circles_of_centre_face_and_probe_tip(ball, fig4):
+    kw, R = fig4
+    ds = simulate(**kw, T=2 * math.pi / 3.23, n_out=801, ball=ball, probe_m=PROBE)
+    th = math.radians(24.0)
+    d_face = ball.c + ball.a - ball.cut_height
+    # the circle's centre is the origin (Fig. 4 starts at y = -R); the axis's horizontal part is
+    # radial, pointing in, so the face and the tip run outside G (Fig. 4a)
+    for (xv, yv), radius in ((("x", "y"), R), (("x_face", "y_face"), R + d_face * math.cos(th)),
+                             (("x_tip", "y_tip"), R + (d_face + PROBE) * math.cos(th))):
+        r = np.hypot(ds[xv].values, ds[yv].values)
+        assert np.allclose(r, radius, rtol=1e-6), (xv, r.mean(), radius)
+
+
+def test_forces_and_torque_of_the_steady_circle_match_eqs_36_to_40(ball, fig4):
+    kw, R = fig4
+    ds = simulate(**kw, T=2.0, n_out=401, ball=ball)
+    M, g, a, c = ball.M, ball.g, ball.a, ball.c
+    th, Om = math.radians(24.0), -3.23
+    om = kw["phidot0"]
+    f_h = np.hypot(ds.Fx, ds.Fy)
+    assert np.allclose(f_h, M * R * Om**2, rtol=1e-6)  # centripetal, M R Omega^2
+    # friction points from G to the circle's centre (the origin)
+    assert np.allclose((ds.Fx * ds.x + ds.Fy * ds.y) / (f_h * np.hypot(ds.x, ds.y)), -1,
+                       atol=1e-6)
+    assert np.allclose(ds.N, M * g, rtol=1e-9) and np.allclose(ds.Fz, 0, atol=1e-9)
+    # Eq. (40) with m = M, written out here
+    tau_c = M * math.cos(th) * (-g * c + (a - c * math.sin(th)) * (a * om - c * Om) * Om)
+    assert np.allclose(np.hypot(ds.tau_x, ds.tau_y), abs(tau_c), rtol=1e-6)
+    assert np.allclose(ds.tau_z, 0, atol=1e-12)
+    vx, vy = np.gradient(ds.x.values, ds.time.values), np.gradient(ds.y.values, ds.time.values)
+    cross = (ds.tau_x * vy - ds.tau_y * vx) / (np.hypot(vx, vy) * abs(tau_c))
+    assert np.max(np.abs(cross[5:-5])) < 1e-3  # parallel to the velocity (Eq. 39)
+
+
+def test_force_and_torque_equal_the_rates_of_momentum_and_angular_momentum(ball, square):
+    ds = square
+    t = ds.time.values
+    M, a, c, A, B = ball.M, ball.a, ball.c, ball.A, ball.B
+    th, ch = ds.theta.values, ds.chi.values
+    thd, chd, phd = ds.thetadot.values, ds.chidot.values, ds.phidot.values
+
+    def d(v):
+        return np.gradient(v, t, edge_order=2)
+
+    sl = slice(10, -10)
+    f = {"Fx": M * d(d(ds.x.values)), "Fy": M * d(d(ds.y.values)),
+         "Fz": M * d(d(a - c * np.sin(th)))}
+    for k, want in f.items():
+        scale = np.max(np.abs(ds[k].values))
+        assert np.max(np.abs(ds[k].values[sl] - want[sl])) < 2e-4 * scale, k
+    # L_G = A w + (B - A) (w . eta) eta with w from Eq. (1), built in the fixed frame
+    xi = np.column_stack([np.cos(ch), np.sin(ch), 0 * ch])
+    eta = np.column_stack([-np.cos(th) * np.sin(ch), np.cos(th) * np.cos(ch), -np.sin(th)])
+    zeta = np.cross(xi, eta)
+    w = (-thd[:, None] * xi + (phd - chd * np.sin(th))[:, None] * eta
+         + (chd * np.cos(th))[:, None] * zeta)
+    L = A * w + (B - A) * np.sum(w * eta, axis=1)[:, None] * eta
+    for j, k in enumerate(("tau_x", "tau_y", "tau_z")):
+        scale = np.max(np.abs(ds[k].values))
+        assert np.max(np.abs(ds[k].values[sl] - d(L[:, j])[sl])) < 2e-4 * scale, k
