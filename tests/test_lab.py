@@ -109,3 +109,68 @@ def test_force_and_torque_equal_the_rates_of_momentum_and_angular_momentum(ball,
     for j, k in enumerate(("tau_x", "tau_y", "tau_z")):
         scale = np.max(np.abs(ds[k].values))
         assert np.max(np.abs(ds[k].values[sl] - d(L[:, j])[sl])) < 2e-4 * scale, k
+
+
+def _pose(theta_deg, chi_deg=0.0, phi=0.0):
+    import xarray as xr
+
+    one = ("time", [0.0])
+    return xr.Dataset({"x": one, "y": one, "theta": ("time", [math.radians(theta_deg)]),
+                       "chi": ("time", [math.radians(chi_deg)]), "phi": ("time", [phi])})
+
+
+def test_animation_geometry_is_the_truncated_ball(ball):
+    from ballsurvey.animate import ball_geometry, silhouette
+
+    a, h = ball.a, ball.cut_height
+    geo = ball_geometry(_pose(30.0, 40.0, 1.0), 0, ball, PROBE)
+    rim = geo["rim"] - geo["C"]
+    assert np.allclose(np.linalg.norm(rim, axis=1), a)  # the rim lies on the sphere
+    assert np.allclose(rim @ -geo["eta"], a - h)  # in the cut's plane
+    assert np.isclose(np.linalg.norm(geo["spot"] - geo["C"]), a)
+    assert np.isclose(geo["contact"][2], 0.0) and np.isclose(geo["C"][2], a)
+    # axis horizontal, seen from above: a disc less the circular segment cut off
+    geo = ball_geometry(_pose(0.0), 0, ball, PROBE)
+    p = silhouette(geo, np.array([0.0, 0.0, 1.0]), (0, 1), ball)
+    area = 0.5 * abs(np.dot(p[:, 0], np.roll(p[:, 1], 1)) - np.dot(p[:, 1], np.roll(p[:, 0], 1)))
+    d = a - h
+    want = math.pi * a * a - (a * a * math.acos(d / a) - d * math.sqrt(a * a - d * d))
+    assert abs(area / want - 1) < 2e-3
+    # seen along the axis, face towards us: the whole disc
+    geo = ball_geometry(_pose(0.0), 0, ball, PROBE)
+    p = silhouette(geo, np.array([0.0, -1.0, 0.0]), (0, 2), ball)
+    area = 0.5 * abs(np.dot(p[:, 0], np.roll(p[:, 1], 1)) - np.dot(p[:, 1], np.roll(p[:, 0], 1)))
+    assert abs(area / (math.pi * a * a) - 1) < 2e-3
+
+
+def test_animate_writes_a_gif_of_the_frames_asked_and_refuses_mp4_without_ffmpeg(
+        tmp_path, capsys, monkeypatch):
+    from PIL import Image
+
+    from ballsurvey import animate
+    from ballsurvey.cli import main
+
+    out = tmp_path / "ball.gif"
+    assert main(["animate", "--theta0-deg", "-5", "--chidot0", "4.05", "--phidot0", "-3",
+                 "--T", "0.3", "--fps", "10", "--speed", "1", "-o", str(out)]) == 0
+    assert "(4 frames, 10 fps, 1x speed)" in capsys.readouterr().out
+    with Image.open(out) as im:
+        assert im.format == "GIF" and im.n_frames == 4
+    monkeypatch.setattr(animate.shutil, "which", lambda name: None)
+    assert main(["animate", "--theta0-deg", "-5", "--chidot0", "4.05", "--phidot0", "-3",
+                 "-o", str(tmp_path / "ball.mp4")]) == 2
+    err = capsys.readouterr().err
+    assert "ffmpeg" in err and err.count("\n") == 1
+    assert not (tmp_path / "ball.mp4").exists()
+
+
+def test_path_show_and_forces_write_both_figures_and_refuse_unknown_points(tmp_path, capsys):
+    from ballsurvey.cli import main
+
+    out = tmp_path / "p.png"
+    args = ["path", "--theta0-deg", "24", "--chidot0", "-3.23", "--phidot0", "-10.21",
+            "--T", "0.5", "--n-out", "201", "-o", str(out)]
+    assert main(args + ["--show", "probe,face", "--forces"]) == 0
+    assert out.stat().st_size > 0 and (tmp_path / "p-forces.png").stat().st_size > 0
+    assert main(args + ["--show", "probe,nose"]) == 2
+    assert "nose" in capsys.readouterr().err

@@ -361,6 +361,35 @@ def _add_ball_options(parser) -> None:
     g.add_argument("--spec", metavar="SPEC.toml", help="use the [ball] of this sweep spec")
 
 
+def _cmd_animate(args):
+    from . import limits
+    from .animate import check_output, frame_count, write_animation
+    from .simulate import check_simulate_inputs, simulate
+
+    for name in ("theta0_deg", "thetadot0", "chidot0", "phidot0", "chi0_deg"):
+        _launch_opt("--" + name.replace("_", "-"), name, getattr(args, name))
+    fps = _opt("--fps", args.fps, positive=True, hi=120)
+    speed = _opt("--speed", args.speed, positive=True, hi=100)
+    probe = _opt("--probe-m", args.probe_m, nonnegative=True, hi=1.0)
+    try:
+        out = check_output(args.output)
+    except limits.InputError as exc:
+        raise UserError(f"-o/--output: {exc}") from None
+    ball = _ball_arg(args)
+    try:
+        limits.steps(args.T, args.dt, "--T", "--dt")
+        check_simulate_inputs(args.theta0_deg, args.thetadot0, args.chidot0, args.phidot0, args.T,
+                              args.dt, args.chi0_deg, ball=ball)
+        frames = frame_count(args.T, fps, speed)
+        n_out = int(min(max(round(args.T / args.dt), 1), 20000)) + 1
+        ds = simulate(args.theta0_deg, args.thetadot0, args.chidot0, args.phidot0, args.T,
+                      dt=args.dt, chi0_deg=args.chi0_deg, n_out=n_out, ball=ball, probe_m=probe)
+    except limits.InputError as exc:
+        raise UserError(str(exc)) from None
+    write_animation(ds, out, ball=ball, fps=fps, speed=speed)
+    print(f"{ds.attrs['label']}: wrote {out} ({frames} frames, {fps:g} fps, {speed:g}x speed)")
+
+
 def _cmd_fit(args):
     import json
 
@@ -733,6 +762,33 @@ def build_parser() -> argparse.ArgumentParser:
                         "the paper's Figs. 4b, 7b, into FILE-forces.png")
     _add_ball_options(q)
     q.set_defaults(func=_cmd_path)
+
+    an = cmd("animate", help="animate one launch: the truncated ball with its flat face and probe "
+                             "from above and from the side, the path being traced (GIF or MP4)")
+    an.add_argument("--theta0-deg", type=float, required=True, metavar="DEG",
+                    help="initial tilt (deg)")
+    an.add_argument("--thetadot0", type=float, default=0.0, metavar="RATE",
+                    help="initial tilt rate (rad/s)")
+    an.add_argument("--chidot0", type=float, required=True, metavar="RATE",
+                    help="initial precession rate (rad/s)")
+    an.add_argument("--phidot0", type=float, required=True, metavar="RATE",
+                    help="initial spin rate (rad/s)")
+    an.add_argument("--chi0-deg", type=float, default=0.0, metavar="DEG",
+                    help="initial heading (deg)")
+    an.add_argument("--T", type=float, default=3.0, metavar="SECONDS",
+                    help="duration of the motion shown (s); a square or triangle of the paper "
+                         "closes in 2-3 s")
+    an.add_argument("--dt", type=float, default=1e-4, metavar="SECONDS", help="largest step (s)")
+    an.add_argument("--fps", type=float, default=20.0, help="frames per second of the file")
+    an.add_argument("--speed", type=float, default=0.5,
+                    help="seconds of motion per second of playback (0.5: half speed, so the "
+                         "quick turns near theta = 90 deg can be followed)")
+    an.add_argument("--probe-m", type=float, default=0.0254, metavar="METRES",
+                    help="probe length (m) on the flat face")
+    an.add_argument("-o", "--output", required=True, metavar="FILE.gif|FILE.mp4",
+                    help="GIF (Pillow, always there) or MP4 (needs ffmpeg on the PATH)")
+    _add_ball_options(an)
+    an.set_defaults(func=_cmd_animate)
 
     ft = cmd("fit", help="find the launch that reproduces a measured track (CSV)")
     ft.add_argument("track", metavar="TRACK.csv",

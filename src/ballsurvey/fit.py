@@ -337,7 +337,7 @@ def initial_velocity(track: Track, ball: Ball, window_s: float = 0.1):
 def survey_launches(track: Track, ball: Ball, box=None, grid=None) -> np.ndarray:
     """The survey's launches (4, n): theta0_deg, thetadot0, chidot0 on the grid of the box
     (narrowed to the track's own first theta_deg and chidot when it has them), and phidot0 from
-    the initial speed of G, |v| = sqrt(((phidot - c chidot) a cos th)^2 + ((a - c sin th)
+    the initial speed of G, |v| = sqrt(((a phidot - c chidot) cos th)^2 + ((a - c sin th)
     thetadot)^2) (Eqs. 6-7), with both signs."""
     box = {**BOX, **(box or {})}
     grid = {**GRID, **(grid or {})}
@@ -358,7 +358,7 @@ def survey_launches(track: Track, ball: Ball, box=None, grid=None) -> np.ndarray
     sth, cth = np.sin(np.radians(th)), np.cos(np.radians(th))
     w = (a - c * sth) * thd
     u = np.sqrt(np.maximum(v2 - w * w, 0.0))
-    phd = [c * chd + sign * u / (a * cth) for sign in (1.0, -1.0)]
+    phd = [(c * chd + sign * u / cth) / a for sign in (1.0, -1.0)]
     keep = np.concatenate([np.abs(p) <= limits.MAX_RATE for p in phd])
     return np.stack([np.tile(th, 2), np.tile(thd, 2), np.tile(chd, 2),
                      np.concatenate(phd)])[:, keep]
