@@ -174,3 +174,48 @@ def test_path_show_and_forces_write_both_figures_and_refuse_unknown_points(tmp_p
     assert out.stat().st_size > 0 and (tmp_path / "p-forces.png").stat().st_size > 0
     assert main(args + ["--show", "probe,nose"]) == 2
     assert "nose" in capsys.readouterr().err
+
+
+OTHER_BALL = "a=0.03,c=0.005,M=0.12,A=3.2e-5,B=3.6e-5,cut_height=0.01"
+
+
+def test_ball_options_reach_the_integration_and_bad_balls_are_one_line(tmp_path, capsys):
+    from ballsurvey.ball import Ball
+    from ballsurvey.cli import main
+    from ballsurvey.sweep.spec import load_spec
+
+    launch = ["--theta0-deg", "-5", "--chidot0", "4.05", "--phidot0", "-3", "--T", "4",
+              "--n-out", "401"]
+    other = Ball(a=0.03, c=0.005, M=0.12, A=3.2e-5, B=3.6e-5, cut_height=0.01)
+    want = simulate(-5.0, 0.0, 4.05, -3.0, T=4.0, n_out=401, ball=other).attrs["n_sides"]
+    paper = simulate(-5.0, 0.0, 4.05, -3.0, T=4.0, n_out=401).attrs["n_sides"]
+    assert abs(want - paper) > 0.01
+    assert main(["path", *launch, "--ball", OTHER_BALL, "-o", str(tmp_path / "p.png")]) == 0
+    assert f"n_sides {want:.4f}" in capsys.readouterr().out
+    # a spec's [ball], read by the spec's own rules
+    spec = tmp_path / "s.toml"
+    spec.write_text(f"[ball]\n{OTHER_BALL.replace(',', chr(10))}\n[launch]\ntheta0_deg = 0.0\n"
+                    "thetadot0 = 0.0\nchidot0 = 1.0\nphidot0 = -3.0\n[run]\nT = 1.0\n")
+    assert load_spec(spec).ball == other
+    assert main(["path", *launch, "--spec", str(spec), "-o", str(tmp_path / "q.png")]) == 0
+    assert f"n_sides {want:.4f}" in capsys.readouterr().out
+    for bad, words in ((["--ball", "a=0.03,c=x"], "'x' is not a number"),
+                       (["--ball", "a=0.03,c=0.005,M=0.1,A=1e-5,B=3e-5"], "B <= 2A"),
+                       (["--ball", "a=0.03,q=1"], "unknown key"),
+                       (["--cut-height", "-1"], "--cut-height"),
+                       (["--spec", str(spec), "--ball", OTHER_BALL], "not both")):
+        assert main(["path", *launch, *bad, "-o", str(tmp_path / "r.png")]) == 2
+        err = capsys.readouterr().err
+        assert words in err and err.count("\n") == 1, err
+    assert not (tmp_path / "r.png").exists()
+
+
+def test_plot_path_returns_a_figure_without_a_file(square):
+    from matplotlib.figure import Figure
+
+    from ballsurvey.plot import plot_path
+
+    fig = plot_path(square.isel(time=slice(None, None, 30)), show=("probe", "face"))
+    assert isinstance(fig, Figure)
+    texts = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert "tip of the probe" in texts and "centre of the flat face" in texts

@@ -349,8 +349,8 @@ def _ball_arg(args):
     return ball_from_options(args.ball, cut, args.spec)
 
 
-def _add_ball_options(parser) -> None:
-    g = parser.add_argument_group("the ball (default: the paper's truncated billiard ball)")
+def _add_ball_options(parser, default="the paper's truncated billiard ball") -> None:
+    g = parser.add_argument_group(f"the ball (default: {default})")
     g.add_argument("--ball", metavar="K=V,...",
                    help="the ball as a spec's [ball] gives it, SI: a=..,c=..,M=..,A=..,B=.. "
                         "(m, m, kg, kg m^2, kg m^2; also g=, cut_height=) or a=..,cut_height=..,"
@@ -440,7 +440,9 @@ def _cmd_gallery(args):
     ds = _open_map(args.result)  # a folder or '.' is refused here, before naming the output
     out = _out_file("-o/--output", args.output or str(Path(args.result).with_name(
         Path(args.result).stem + "-gallery.png")), ".png")
-    rows = draw_gallery(ds, out, per_label=args.per_label, seed=args.seed, T=args.T)
+    rows = draw_gallery(ds, out, per_label=args.per_label, seed=args.seed, T=args.T,
+                        ball=_ball_arg(args) if (args.ball or args.cut_height is not None
+                                                 or args.spec) else None)
     changed = [r for r in rows if r["label_again"] != r["label"]]
     print(f"wrote {out}: {len(rows)} paths, "
           f"{len(changed)} labelled differently when integrated again")
@@ -466,6 +468,7 @@ def _cmd_find(args):
     from .find import NoSolution, find_launch, trace
 
     _opt("--n-sides", args.n_sides, integer=True, lo=3, hi=1000)
+    ball = _ball_arg(args)
     for name in ("theta0_deg", "thetadot0", "chidot0", "phidot0"):
         _launch_opt("--" + name.replace("_", "-"), name, getattr(args, name))
     if args.bracket:
@@ -500,7 +503,7 @@ def _cmd_find(args):
             raise UserError("give --phidot0 (--trace-theta0 traces theta0 and solves chidot0)")
         start, stop, num = args.trace_theta0
         t0 = time.perf_counter()
-        rows = trace(n, np.linspace(start, stop, int(num)), launch, args.bracket)
+        rows = trace(n, np.linspace(start, stop, int(num)), launch, args.bracket, ball=ball)
         took = time.perf_counter() - t0
         lines = ["theta0_deg,chidot0_rad_s,n_sides_integrated,closure_m,label"] + [
             f"{th:.6g},{s.value:.9g},{s.n_sides:.9f},{s.closure_m:.2e},{s.label}" for th, s in rows]
@@ -518,7 +521,7 @@ def _cmd_find(args):
     launch = {k: (0.0 if v is None else v) for k, v in launch.items()}
     rejected: list = []
     try:
-        sols = find_launch(n, launch, args.solve, args.bracket, rejected=rejected)
+        sols = find_launch(n, launch, args.solve, args.bracket, ball=ball, rejected=rejected)
     except NoSolution as exc:
         print(f"ballsurvey find: no solution: {exc}", file=sys.stderr)
         raise SystemExit(1) from None
@@ -829,6 +832,7 @@ def build_parser() -> argparse.ArgumentParser:
     gl.add_argument("--seed", type=int, default=0, help="random seed of the sample")
     gl.add_argument("--T", type=float, metavar="SECONDS",
                     help="duration (s) of each integration (default: the map's)")
+    _add_ball_options(gl, default="the map's own ball")
     gl.set_defaults(func=_cmd_gallery)
 
     pp = cmd("paper", help="reproduce the paper's numerical figures and compare numbers")
@@ -854,6 +858,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="trace the curve of exact n-gons in the (theta0, chidot0) plane: NUM "
                          "values of theta0 from START to STOP (deg)")
     fd.add_argument("-o", "--output", metavar="FILE.csv", help="CSV file for --trace-theta0")
+    _add_ball_options(fd)
     fd.set_defaults(func=_cmd_find)
 
     rf = cmd("refine", help="refine a (theta0, chidot0) map only near regime boundaries and "

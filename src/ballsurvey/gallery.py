@@ -61,9 +61,10 @@ def sample_launches(ds: xr.Dataset, per_label: int = 4, seed: int = 0,
 
 
 def draw_gallery(ds: xr.Dataset, out, per_label: int = 4, seed: int = 0, T: float | None = None,
-                 dt: float | None = None, labels=None) -> list[dict]:
+                 dt: float | None = None, labels=None, ball: Ball | None = None) -> list[dict]:
     """Draw the gallery PNG; returns the sampled rows with the label of the re-integration
-    (`label_again`). T, dt: duration and step (s) of each integration, by default the map's."""
+    (`label_again`). T, dt: duration and step (s) of each integration, by default the map's;
+    ball: the ball integrated (default: the map's own, `map_ball`)."""
     from matplotlib.figure import Figure
 
     from .simulate import simulate
@@ -71,7 +72,7 @@ def draw_gallery(ds: xr.Dataset, out, per_label: int = 4, seed: int = 0, T: floa
     rows = sample_launches(ds, per_label, seed, labels)
     if not rows:
         raise ValueError("the map has no labelled launches")
-    base = map_ball(ds)
+    base = ball or map_ball(ds)
     T_run = float(T if T is not None else ds.attrs.get("run_T_s", 20.0))
     dt = float(dt if dt is not None else ds.attrs.get("run_dt_s", 1e-4))
     words = list(dict.fromkeys(r["label"] for r in rows))

@@ -66,9 +66,12 @@ def default_axes(ds: xr.Dataset, exclude=()) -> tuple[str, str]:
     return dims[1], dims[0]
 
 
-def plot_map(ds: xr.Dataset, out, x: str | None = None, y: str | None = None,
+def plot_map(ds: xr.Dataset, out=None, x: str | None = None, y: str | None = None,
              at: dict | None = None, facet: str | None = None, contours: bool = True):
-    """Categorical map of `label` over axes x (across) and y (up); facets along `facet`."""
+    """Categorical map of `label` over axes x (across) and y (up); facets along `facet`.
+
+    Returns the file written to `out`, or with out None the matplotlib Figure (shown by a
+    notebook as it is)."""
     if "label" not in ds:
         raise InputError("the file has no 'label' variable (not a ballsurvey map?)")
     if "launch" in ds.dims:
@@ -132,6 +135,8 @@ def plot_map(ds: xr.Dataset, out, x: str | None = None, y: str | None = None,
         handles.append(Line2D([], [], color="k", lw=1.0,
                               label="exact triangle (n=3)\nand square (n=4)"))
     fig.legend(handles=handles, loc="outside right center", title="path shape", fontsize=9)
+    if out is None:  # a notebook: the Figure itself
+        return fig
     fig.savefig(out, dpi=110)
     return out
 
@@ -203,13 +208,14 @@ def _dense_rates(ds: xr.Dataset, ball: Ball, max_samples: int = 1_000_001):
     return t, ds.chidot.values, ds.phidot.values
 
 
-def plot_path(ds: xr.Dataset, out, ball: Ball | None = None, title: str | None = None,
+def plot_path(ds: xr.Dataset, out=None, ball: Ball | None = None, title: str | None = None,
               show=()):
     """One launch like the paper's figures: path coloured by theta with corners marked and the
     label in the title; theta(t); chidot and phidot (t) at every integration step, drawn through
     their extremes so the spin spikes near theta = 90 deg keep their height; friction ratio and
     normal force (t). Legends sit outside the data; no line hides another. show: body points
-    drawn beside the centre of mass (`draw_body_points`: face, probe, contact)."""
+    drawn beside the centre of mass (`draw_body_points`: face, probe, contact). Returns the
+    file written to `out`, or with out None the matplotlib Figure (for a notebook)."""
     from matplotlib.collections import LineCollection
 
     ball = ball or Ball.paper()
@@ -264,6 +270,8 @@ def plot_path(ds: xr.Dataset, out, ball: Ball | None = None, title: str | None =
                            rf"{a.get('thetadot0')}, $\dot\chi_0$ = {a.get('chidot0')}, "
                            rf"$\dot\phi_0$ = {a.get('phidot0'):.4g} rad/s, T = {a.get('T_s')} s"),
                  fontsize=11)
+    if out is None:  # a notebook: the Figure itself
+        return fig
     fig.savefig(out, dpi=110)
     return out
 
