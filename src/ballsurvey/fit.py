@@ -11,9 +11,11 @@ integrated motion best reproduces it:
    the track's initial speed, both signs) on the ensemble kernel over the first seconds, each
    launch integrated once with chi0 = 0 at the origin and then turned and moved onto the track
    in closed form (the motion is the same under a turn about the vertical and a shift);
-2. a local refinement of the best few starts by scipy's least_squares (trust-region reflective,
-   Jacobian by forward differences, all its launches in one kernel call), over a window doubled
-   until it holds the whole track;
+2. a local refinement by scipy's least_squares (trust-region reflective, Jacobian by forward
+   differences, all its launches in one kernel call): the best N_STARTS survey launches a few
+   iterations over the first START_T seconds (where a launch a grid step off still keeps the
+   track's phase), then the best N_CARRIED of those over a window doubled until it holds the
+   whole track;
 3. uncertainties from the Jacobian at the optimum: covariance s^2 (J^T J)^-1, s^2 the residual
    variance per degree of freedom.
 
@@ -55,8 +57,11 @@ SURVEY_DT = 1e-3
 SURVEY_EVERY = 0.01
 #: the refinement's RK4 step (s): the model is sampled every step and interpolated to the track
 FIT_DT = 5e-4
-#: starts refined from the survey
-N_STARTS = 6
+#: survey launches refined over the first START_T seconds, and how many of them are carried
+#: on to the whole track
+N_STARTS = 24
+START_T = 0.5
+N_CARRIED = 3
 #: track checks: fewest samples, shortest duration (s), largest sample interval (s), largest
 #: speed (m/s), largest extent (m): beyond them the track is not a rolling ball in s and m
 MIN_SAMPLES = 20
@@ -445,7 +450,8 @@ def fit_track(track, ball: Ball | None = None, *, probe_m: float | None = None, 
         The survey's launch box ``{name: (lo, hi)}`` and grid sizes ``{name: n}`` for
         theta0_deg (deg), thetadot0 and chidot0 (rad/s); defaults `BOX`, `GRID`.
     n_starts : int
-        Survey launches refined locally (the best, with distinct misfits).
+        Survey launches refined locally over the first START_T seconds (the best N_CARRIED of
+        them are carried on to the whole track).
     label_T : float
         Duration (s) of the run that labels the fitted launch (the track's if longer).
 
@@ -471,22 +477,23 @@ def fit_track(track, ball: Ball | None = None, *, probe_m: float | None = None, 
         raise limits.InputError(f"{track.source}: no launch of the survey box stays on the "
                                 "Euler chart over the track; widen the box")
     T_full = float(track.t[-1])
-    T = min(SURVEY_T, T_full)
+    picked = [starts[:, j] for j in range(min(n_starts, costs.size)) if np.isfinite(costs[j])]
+    # the starts refined a little over a short window, where a launch a grid step away still
+    # keeps the track's phase; the best few taken on over windows doubled to the whole track
+    T = min(START_T, T_full)
     model = _Model(track, ball, T)
-    picked, seen = [], []
-    for j in range(starts.shape[1]):
-        if len(picked) >= n_starts or not np.isfinite(costs[j]):
-            break
-        if any(np.allclose(starts[:4, j], s, rtol=0, atol=1e-9) for s in seen):
-            continue
-        seen.append(starts[:4, j])
-        picked.append(starts[:, j])
-    fits = [_refine(model, q, ball, 40) for q in picked]
-    best = min(fits, key=lambda r: r.cost)
-    while T < T_full:
-        T = min(2 * T, T_full)
-        model = _Model(track, ball, T)
-        best = _refine(model, best.x, ball, 60 if T == T_full else 30)
+    fits = sorted((_refine(model, q, ball, 12) for q in picked), key=lambda r: r.cost)
+    best = None
+    for r in fits[:N_CARRIED]:
+        T, x = min(START_T, T_full), r.x
+        while T < T_full:
+            T = min(2 * T, T_full)
+            model = _Model(track, ball, T)
+            r = _refine(model, x, ball, 60 if T == T_full else 25)
+            x = r.x
+        if best is None or r.cost < best.cost:
+            best, best_model = r, model
+    model = best_model
     q = best.x
     J = best.jac
     m, n = J.shape
