@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 
 from ballsurvey.cli import main
-from ballsurvey.fit import PARAMS, fit_track, make_track
+from ballsurvey.fit import PARAMS, fit_track
 from ballsurvey.synthetic import synthetic_track
 
 FIG9A = dict(theta0_deg=20.0, thetadot0=0.0, chidot0=10.0, phidot0=-2.9, chi0_deg=30.0,
@@ -43,10 +43,7 @@ def test_fit_of_a_probe_track_with_theta_and_chidot_recovers_the_square(ball):
     # the paper's Fig. 12a square, tracked as the paper did: probe tip and base, theta, chidot
     tr = synthetic_track(-5.0, 0.0, 4.05, -3.0, T=1.5, fps=300, noise_m=3e-4,
                          noise_theta_deg=0.3, noise_chidot=0.3, probe_m=0.03, seed=2)
-    track = make_track(tr["t"], x_tip=tr["x_tip"], y_tip=tr["y_tip"], x_base=tr["x_base"],
-                       y_base=tr["y_base"], theta_deg=tr["theta_deg"], chidot=tr["chidot"],
-                       probe_m=0.03)
-    fit = fit_track(track, ball)
+    fit = fit_track(pd.DataFrame(tr), ball, probe_m=0.03)  # columns by name
     truth = dict(theta0_deg=-5.0, thetadot0=0.0, chidot0=4.05, phidot0=-3.0, chi0_deg=0.0,
                  x0=0.0, y0=0.0)
     for k in PARAMS:

@@ -148,7 +148,7 @@ def make_track(t, x=None, y=None, *, theta_deg=None, chidot=None, x_tip=None, y_
     span = t[-1] - t[0]
     if span < MIN_DURATION_S:
         raise limits.InputError(f"{source}: the track lasts {span:g} s; a fit needs at least "
-                                f"{MIN_DURATION_S:g} s")
+                                f"{MIN_DURATION_S:g} s (t is in s)")
     if span > MAX_DURATION_S:
         raise limits.InputError(f"{source}: the track lasts {span:g} s, more than "
                                 f"{MAX_DURATION_S:g} s (is t in ms? t is in s)")
@@ -440,8 +440,9 @@ def fit_track(track, ball: Ball | None = None, *, probe_m: float | None = None, 
 
     Parameters
     ----------
-    track : Track, str or Path
-        A `Track` (`make_track`) or a CSV file (`read_track`).
+    track : Track, str, Path, dict or pandas.DataFrame
+        A `Track` (`make_track`), a CSV file (`read_track`), or columns by name (t, x, y or
+        x_tip, y_tip, x_base, y_base, optionally theta_deg, chidot; the rules of `make_track`).
     ball : Ball, optional
         The ball (default: the paper's).
     probe_m : float, optional
@@ -467,8 +468,14 @@ def fit_track(track, ball: Ball | None = None, *, probe_m: float | None = None, 
 
     t_wall = time.perf_counter()
     ball = ball or Ball.paper()
-    if not isinstance(track, Track):
+    if isinstance(track, (str, Path)):
         track = read_track(track, probe_m=probe_m)
+    elif not isinstance(track, Track):  # a mapping of columns or a pandas DataFrame
+        cols = {str(k): np.asarray(track[k], dtype=float) for k in track.keys()
+                if str(k) in ("t", "x", "y", "theta_deg", "chidot") + PROBE_COLUMNS}
+        if "t" not in cols:
+            raise limits.InputError("track: needs a column t (s)")
+        track = make_track(cols.pop("t"), probe_m=probe_m, **cols)
     if track.probe and track.probe_m is None:
         raise limits.InputError("a probe track needs probe_m (m)")
     starts, costs = survey(track, ball, box=box, grid=grid)
