@@ -349,6 +349,20 @@ def _ball_arg(args):
     return ball_from_options(args.ball, cut, args.spec)
 
 
+def _add_launch_options(parser) -> None:
+    """One launch's options (path, animate): tilt and heading in deg, rates in rad/s."""
+    parser.add_argument("--theta0-deg", type=float, required=True, metavar="DEG",
+                        help="initial tilt (deg)")
+    parser.add_argument("--thetadot0", type=float, default=0.0, metavar="RATE",
+                        help="initial tilt rate (rad/s)")
+    parser.add_argument("--chidot0", type=float, required=True, metavar="RATE",
+                        help="initial precession rate (rad/s)")
+    parser.add_argument("--phidot0", type=float, required=True, metavar="RATE",
+                        help="initial spin rate (rad/s)")
+    parser.add_argument("--chi0-deg", type=float, default=0.0, metavar="DEG",
+                        help="initial heading (deg)")
+
+
 def _add_ball_options(parser, default="the paper's truncated billiard ball") -> None:
     g = parser.add_argument_group(f"the ball (default: {default})")
     g.add_argument("--ball", metavar="K=V,...",
@@ -739,16 +753,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_plot)
 
     q = cmd("path", help="integrate one launch and draw it like the paper's figures")
-    q.add_argument("--theta0-deg", type=float, required=True, metavar="DEG",
-                   help="initial tilt (deg)")
-    q.add_argument("--thetadot0", type=float, default=0.0, metavar="RATE",
-                   help="initial tilt rate (rad/s)")
-    q.add_argument("--chidot0", type=float, required=True, metavar="RATE",
-                   help="initial precession rate (rad/s)")
-    q.add_argument("--phidot0", type=float, required=True, metavar="RATE",
-                   help="initial spin rate (rad/s)")
-    q.add_argument("--chi0-deg", type=float, default=0.0, metavar="DEG",
-                   help="initial heading (deg)")
+    _add_launch_options(q)
     q.add_argument("--T", type=float, default=20.0, metavar="SECONDS", help="duration (s)")
     q.add_argument("--dt", type=float, default=1e-4, metavar="SECONDS", help="largest step (s)")
     q.add_argument("--n-out", type=int, default=4001, metavar="N", help="samples kept")
@@ -768,16 +773,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     an = cmd("animate", help="animate one launch: the truncated ball with its flat face and probe "
                              "from above and from the side, the path being traced (GIF or MP4)")
-    an.add_argument("--theta0-deg", type=float, required=True, metavar="DEG",
-                    help="initial tilt (deg)")
-    an.add_argument("--thetadot0", type=float, default=0.0, metavar="RATE",
-                    help="initial tilt rate (rad/s)")
-    an.add_argument("--chidot0", type=float, required=True, metavar="RATE",
-                    help="initial precession rate (rad/s)")
-    an.add_argument("--phidot0", type=float, required=True, metavar="RATE",
-                    help="initial spin rate (rad/s)")
-    an.add_argument("--chi0-deg", type=float, default=0.0, metavar="DEG",
-                    help="initial heading (deg)")
+    _add_launch_options(an)
     an.add_argument("--T", type=float, default=3.0, metavar="SECONDS",
                     help="duration of the motion shown (s); a square or triangle of the paper "
                          "closes in 2-3 s")
