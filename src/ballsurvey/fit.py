@@ -406,7 +406,8 @@ def survey(track: Track, ball: Ball, *, box=None, grid=None, T: float = SURVEY_T
         times, traj, ok = _integrate(part, ball, T, SURVEY_DT, every)
         data = {k: np.interp(times, track.t, getattr(track, k)) for k in names}
         loc = _model_local(traj, ball, track.probe_m)
-        chi0, x0, y0, cost = _align(loc, data, names, w)
+        with np.errstate(over="ignore", invalid="ignore"):  # launches that blew up: cost inf
+            chi0, x0, y0, cost = _align(loc, data, names, w)
         cost = np.where(ok & np.isfinite(cost), cost, np.inf)
         launches.append(np.vstack([part, chi0, x0, y0]))
         costs.append(cost)
@@ -540,16 +541,12 @@ def plot_fit(track: Track, fit: dict, out=None, ball: Ball | None = None):
     """Track and fitted launch overlaid: the path in the plane (m), and theta (deg) and chidot
     (rad/s) against time where the track has them. Returns the matplotlib Figure; writes it
     to `out` (PNG) if given."""
-    import matplotlib
-
-    if out is not None:
-        matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # the object API: no global matplotlib state
 
     model = fitted_track(fit, track, ball)
     extra = [k for k in ("theta_deg", "chidot") if getattr(track, k) is not None]
-    fig, axs = plt.subplots(1, 1 + len(extra), figsize=(6 + 4 * len(extra), 5.5),
-                            squeeze=False)
+    fig = Figure(figsize=(6 + 4 * len(extra), 5.5), layout="constrained")
+    axs = fig.subplots(1, 1 + len(extra), squeeze=False)
     ax = axs[0, 0]
     pairs = [("x_tip", "y_tip", "probe tip"), ("x_base", "y_base", "probe base")] \
         if track.probe else [("x", "y", "centre of mass")]
@@ -571,8 +568,6 @@ def plot_fit(track: Track, fit: dict, out=None, ball: Ball | None = None):
         axe.legend(fontsize=8)
     fig.suptitle(", ".join(f"{k} {fit[k]:.4g}" for k in PARAMS[:5]) + " (deg, rad/s)",
                  fontsize=9)
-    fig.tight_layout()
     if out is not None:
         fig.savefig(out, dpi=120)
-        plt.close(fig)
     return fig
