@@ -243,7 +243,7 @@ def _integrate(dyn: np.ndarray, ball: Ball, T: float, dt: float, every: int):
     n_rec = plan.n_steps // every + 1
     y0 = launch_state(dyn[0], dyn[1], dyn[2], dyn[3], tu)
     p = np.repeat(ball.nondim_params().reshape(3, 1), dyn.shape[1], axis=1)
-    res = run_tracks(y0, p, plan, every, n_rec, parallel=dyn.shape[1] > 1)
+    res = run_tracks(y0, p, plan, every, n_rec, parallel=dyn.shape[1] > 16)  # one block: serial
     traj = res.traj
     ok = (res.outcome == OK) & np.all(np.isfinite(traj[:, S_X]), axis=0)
     return np.arange(n_rec) * plan.dt_nd * every * tu, traj, ok
