@@ -249,7 +249,7 @@ def _integrate(dyn: np.ndarray, ball: Ball, T: float, dt: float, every: int):
     return np.arange(n_rec) * plan.dt_nd * every * tu, traj, ok
 
 
-def _fallback_traj(q, ball: Ball, T: float, dt: float, every: int, n_t: int) -> np.ndarray:
+def _fallback_traj(q, ball: Ball, T: float, dt: float, n_t: int) -> np.ndarray:
     """One launch's samples through `run_trajectory`, which integrates again in the fixed frame
     a launch that meets the Euler chart's singularity (near-vertical)."""
     tu = ball.time_unit
@@ -277,14 +277,16 @@ class _Model:
         for j in range(dyn.shape[1]):
             tr = traj[:, :, j:j + 1]
             if not ok[j]:
-                tr = _fallback_traj(dyn[:, j], self.ball, self.T, FIT_DT, 1, times.size)
+                tr = _fallback_traj(dyn[:, j], self.ball, self.T, FIT_DT, times.size)
             loc = _model_local(tr, self.ball, self.track.probe_m)
             tt = self.track.t[self.idx]
             out.append({k: np.interp(tt, times, v[:, 0]) for k, v in loc.items()})
         return out
 
     def residual_of(self, placed: dict) -> np.ndarray:
-        return np.concatenate([(placed[k] - self.data[k]) / _sigma(k) for k in self.names])
+        r = np.concatenate([(placed[k] - self.data[k]) / _sigma(k) for k in self.names])
+        # a sample exactly at the vertical has no Euler angles: far off, not NaN
+        return np.nan_to_num(r, nan=1e8, posinf=1e8, neginf=-1e8)
 
     def fun(self, q: np.ndarray) -> np.ndarray:
         key = q.tobytes()
