@@ -219,3 +219,19 @@ def test_plot_path_returns_a_figure_without_a_file(square):
     assert isinstance(fig, Figure)
     texts = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
     assert "tip of the probe" in texts and "centre of the flat face" in texts
+
+
+def test_find_with_another_ball_solves_for_that_ball(capsys):
+    import re
+
+    from ballsurvey.ball import Ball
+    from ballsurvey.cli import main
+
+    assert main(["find", "--shape", "square", "--theta0-deg", "-5", "--phidot0", "-3",
+                 "--ball", OTHER_BALL]) == 0
+    roots = [float(v) for v in re.findall(r"chidot0 = (\S+) rad/s", capsys.readouterr().out)]
+    assert roots and all(abs(r - 4.0526) > 0.1 for r in roots)  # not the paper ball's square
+    other = Ball(a=0.03, c=0.005, M=0.12, A=3.2e-5, B=3.6e-5, cut_height=0.01)
+    for r in roots:  # each closes a square with that ball, judged by integration here
+        a = simulate(-5.0, 0.0, r, -3.0, T=20.0, ball=other, method="dopri5", rtol=1e-10).attrs
+        assert a["label"] == "square" and abs(a["n_sides"] - 4) < 1e-3
