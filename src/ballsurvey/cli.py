@@ -414,19 +414,22 @@ def _cmd_fit(args):
     ball = _ball_arg(args)
     track = read_track(args.track, probe_m=probe)
     fit = fit_track(track, ball)
-    if out is not None:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        plot_fit(track, fit, out, ball=ball)
+    # the numbers first: a plot that cannot be written (exit 1) leaves them printed
     if args.format == "json":
         keys = [k for p in PARAMS for k in (p, p + "_err")] + ["rms_m", "label"]
-        print(json.dumps({k: fit[k] for k in keys}))
+        print(json.dumps({k: fit[k] for k in keys}), flush=True)
     else:
         for k in PARAMS:
             print(f"{k:11s} {fit[k]:+.6g} +- {fit[k + '_err']:.2g} {UNITS[k]}")
         print(f"rms_m       {fit['rms_m']:.3g} m (position residual per coordinate)")
         print(f"label       {fit['label']}")
         print(f"({fit['n_samples']} samples, {fit['survey_launches']} launches surveyed, "
-              f"{fit['seconds']:.1f} s)" + (f"; wrote {out}" if out else ""))
+              f"{fit['seconds']:.1f} s)", flush=True)
+    if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        plot_fit(track, fit, out, ball=ball)
+        if args.format != "json":
+            print(f"wrote {out}")
 
 
 def _cmd_query(args):
