@@ -49,12 +49,16 @@ THETA_SIGMA_DEG = 0.1
 CHIDOT_SIGMA = 0.05
 #: the launch box of the global survey: theta0 (deg), thetadot0, chidot0 (rad/s)
 BOX = {"theta0_deg": (-30.0, 89.0), "thetadot0": (-4.0, 4.0), "chidot0": (-30.0, 30.0)}
+#: tilts (deg) the survey adds near the vertical, where paths change fast with theta0
+NEAR_VERTICAL = (87.0, 88.0, 89.5, 89.9)
 #: grid of the survey inside the box
 GRID = {"theta0_deg": 31, "thetadot0": 9, "chidot0": 61}
 #: the survey's window (s), step (s) and sample spacing (s)
 SURVEY_T = 1.5
 SURVEY_DT = 1e-3
 SURVEY_EVERY = 0.01
+#: share of the survey window a launch must stay on the Euler chart to be judged
+SURVEY_VALID = 1.0
 #: the refinement's RK4 step (s): the model is sampled every step and interpolated to the track
 FIT_DT = 5e-4
 #: survey launches refined over the first START_T seconds, and how many of them are carried
@@ -69,6 +73,8 @@ MIN_DURATION_S = 0.2
 MAX_INTERVAL_S = 0.1
 MAX_SPEED = 5.0
 MAX_EXTENT_M = 20.0
+#: the largest |theta_deg| a track may hold (deg): 90 and its measurement noise
+MAX_THETA_DEG = 95.0
 #: the longest track (s)
 MAX_DURATION_S = 600.0
 #: duration (s) of the run that labels the fitted launch (or the track's, if longer)
@@ -166,8 +172,10 @@ def make_track(t, x=None, y=None, *, theta_deg=None, chidot=None, x_tip=None, y_
                 f"{source}: {px}, {py} move {speed:g} m/s over {extent:g} m; a rolling ball "
                 f"stays below {MAX_SPEED:g} m/s and {MAX_EXTENT_M:g} m (are they in mm? x, y "
                 "are in m)")
-    if cols["theta_deg"] is not None and np.any(np.abs(cols["theta_deg"]) >= 90):
-        raise limits.InputError(f"{source}: theta_deg must stay within +-90 deg (is it in deg?)")
+    # a tilt read near the vertical may pass 90 deg by its noise
+    if cols["theta_deg"] is not None and np.any(np.abs(cols["theta_deg"]) > MAX_THETA_DEG):
+        raise limits.InputError(f"{source}: theta_deg must stay within +-{MAX_THETA_DEG:g} deg "
+                                "(is it in deg?)")
     if cols["chidot"] is not None and np.any(np.abs(cols["chidot"]) > limits.MAX_RATE):
         raise limits.InputError(f"{source}: chidot beyond {limits.MAX_RATE:g} rad/s")
     return Track(t=t - t[0], t_start=float(t[0]), probe_m=probe_m, source=source, **cols)
@@ -237,7 +245,8 @@ def _place(local: dict, chi0_deg, x0, y0) -> dict:
 
 def _integrate(dyn: np.ndarray, ball: Ball, T: float, dt: float, every: int):
     """Fast-state samples of launches dyn (4, n) = theta0_deg, thetadot0, chidot0, phidot0 from
-    chi0 = 0 at the origin: (times (s), traj (n_t, N_FAST, n), ok (n,))."""
+    chi0 = 0 at the origin: (times (s), traj (n_t, N_FAST, n), ok (n,): ran to the end, valid
+    (n_t, n): the samples before a launch stopped (the Euler chart's edge, or non-finite))."""
     tu = ball.time_unit
     plan = StepPlan(T, dt, tu, multiple=every)
     n_rec = plan.n_steps // every + 1
@@ -245,8 +254,12 @@ def _integrate(dyn: np.ndarray, ball: Ball, T: float, dt: float, every: int):
     p = np.repeat(ball.nondim_params().reshape(3, 1), dyn.shape[1], axis=1)
     res = run_tracks(y0, p, plan, every, n_rec, parallel=dyn.shape[1] > 16)  # one block: serial
     traj = res.traj
-    ok = (res.outcome == OK) & np.all(np.isfinite(traj[:, S_X]), axis=0)
-    return np.arange(n_rec) * plan.dt_nd * every * tu, traj, ok
+    t_nd = np.arange(n_rec) * plan.dt_nd * every
+    with np.errstate(invalid="ignore"):
+        valid = (np.isnan(res.t_stop) | (t_nd[:, None] < res.t_stop - plan.dt_nd * every))
+        valid &= np.isfinite(traj[:, S_X]) & np.isfinite(traj[:, S_Y])
+        ok = (res.outcome == OK) & valid.all(axis=0)
+    return t_nd * tu, traj, ok, valid
 
 
 def _fallback_traj(q, ball: Ball, T: float, dt: float, n_t: int) -> np.ndarray:
@@ -272,7 +285,7 @@ class _Model:
         self.cache: dict = {}
 
     def _run(self, dyn: np.ndarray) -> list[dict]:
-        times, traj, ok = _integrate(dyn, self.ball, self.T, FIT_DT, 1)
+        times, traj, ok, _ = _integrate(dyn, self.ball, self.T, FIT_DT, 1)
         out = []
         for j in range(dyn.shape[1]):
             tr = traj[:, :, j:j + 1]
@@ -350,10 +363,11 @@ def survey_launches(track: Track, ball: Ball, box=None, grid=None) -> np.ndarray
     grid = {**GRID, **(grid or {})}
     axes = {k: np.linspace(*box[k], grid[k]) for k in box}
     flat = math.degrees(ball.flat_face_theta_rad)
-    axes["theta0_deg"] = axes["theta0_deg"][axes["theta0_deg"] > flat]
+    th = np.union1d(axes["theta0_deg"], [t for t in NEAR_VERTICAL if t >= box["theta0_deg"][0]])
+    axes["theta0_deg"] = th[th > flat]
     if track.theta_deg is not None:
         th = float(np.median(track.theta_deg[:3]))
-        axes["theta0_deg"] = np.clip(th + np.linspace(-3, 3, 7), flat + 0.1, 89.5)
+        axes["theta0_deg"] = np.unique(np.clip(th + np.linspace(-3, 3, 7), flat + 0.1, 89.9))
     if track.chidot is not None:
         ch = float(np.median(track.chidot[:3]))
         axes["chidot0"] = ch + np.linspace(-1.5, 1.5, 13)
@@ -371,25 +385,35 @@ def survey_launches(track: Track, ball: Ball, box=None, grid=None) -> np.ndarray
                      np.concatenate(phd)])[:, keep]
 
 
-def _align(loc: dict, data: dict, names, w: dict):
+def _align(loc: dict, data: dict, names, w: dict, valid: np.ndarray):
     """Best turn chi0 (deg) and shift (x0, y0) of each launch's positions onto the data, in
-    closed form (2-D Procrustes without reflection), and the weighted misfit left."""
+    closed form (2-D Procrustes without reflection, over each launch's valid samples), and the
+    weighted misfit left, scaled to all the samples (a launch that left the Euler chart part
+    way is judged by its mean misfit before)."""
     pos = [(px, py) for px, py in (("x", "y"), ("x_tip", "y_tip"), ("x_base", "y_base"))
            if px in names]
-    mx = np.concatenate([loc[px] for px, _ in pos])
-    my = np.concatenate([loc[py] for _, py in pos])
+    wt = np.concatenate([valid] * len(pos)).astype(float)
+    n = wt.sum(0)
+
+    def clean(v):
+        return np.where(wt > 0, v, 0.0)
+
+    mx = clean(np.concatenate([loc[px] for px, _ in pos]))
+    my = clean(np.concatenate([loc[py] for _, py in pos]))
     dx = np.concatenate([data[px] for px, _ in pos])[:, None]
     dy = np.concatenate([data[py] for _, py in pos])[:, None]
-    mcx, mcy, dcx, dcy = mx.mean(0), my.mean(0), dx.mean(0), dy.mean(0)
-    ax, ay, bx, by = mx - mcx, my - mcy, dx - dcx, dy - dcy
+    mcx, mcy = mx.sum(0) / n, my.sum(0) / n
+    dcx, dcy = (wt * dx).sum(0) / n, (wt * dy).sum(0) / n
+    ax, ay, bx, by = wt * (mx - mcx), wt * (my - mcy), wt * (dx - dcx), wt * (dy - dcy)
     ang = np.arctan2((ax * by - ay * bx).sum(0), (ax * bx + ay * by).sum(0))
     c, s = np.cos(ang), np.sin(ang)
     x0, y0 = dcx - (c * mcx - s * mcy), dcy - (s * mcx + c * mcy)
     cost = ((c * ax - s * ay - bx) ** 2 + (s * ax + c * ay - by) ** 2).sum(0) / POSITION_SIGMA_M**2
     for k in ("theta_deg", "chidot"):
         if k in names:
-            cost = cost + (((loc[k] - data[k][:, None]) / w[k]) ** 2).sum(0)
-    return np.degrees(ang), x0, y0, cost
+            r = np.where(valid, (loc[k] - data[k][:, None]) / w[k], 0.0)
+            cost = cost + (r * r).sum(0)
+    return np.degrees(ang), x0, y0, cost * wt.shape[0] / n
 
 
 def survey(track: Track, ball: Ball, *, box=None, grid=None, T: float = SURVEY_T,
@@ -405,12 +429,16 @@ def survey(track: Track, ball: Ball, *, box=None, grid=None, T: float = SURVEY_T
     launches, costs = [], []
     for lo in range(0, dyn.shape[1], batch):
         part = dyn[:, lo:lo + batch]
-        times, traj, ok = _integrate(part, ball, T, SURVEY_DT, every)
+        times, traj, ok, valid = _integrate(part, ball, T, SURVEY_DT, every)
         data = {k: np.interp(times, track.t, getattr(track, k)) for k in names}
         loc = _model_local(traj, ball, track.probe_m)
-        with np.errstate(over="ignore", invalid="ignore"):  # launches that blew up: cost inf
-            chi0, x0, y0, cost = _align(loc, data, names, w)
-        cost = np.where(ok & np.isfinite(cost), cost, np.inf)
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            chi0, x0, y0, cost = _align(loc, data, names, w, valid)
+        # a launch that left the Euler chart (near the vertical) within the first half of the
+        # window, or blew up: out; later, judged by its mean misfit (the refinement integrates
+        # it again in the fixed frame)
+        enough = valid.sum(0) >= SURVEY_VALID * valid.shape[0]
+        cost = np.where(enough & np.isfinite(cost), cost, np.inf)
         launches.append(np.vstack([part, chi0, x0, y0]))
         costs.append(cost)
     launches, costs = np.hstack(launches), np.concatenate(costs)
