@@ -66,6 +66,7 @@ def _good(n=300, fps=300.0):
     (lambda d: {**d, "x": d["x"] * 1000, "y": d["y"] * 1000}, "are they in mm?"),
     (lambda d: {**d, "t": d["t"] * 1000}, "is t in ms?"),
     (lambda d: {"t": d["t"], "x": d["x"]}, "give both x and y"),
+    (lambda d: {**d, "theta_deg": np.full(d["t"].size, 120.0)}, "theta_deg must stay within"),
     (lambda d: {"t": d["t"], "x_tip": d["x"], "y_tip": d["y"], "x_base": d["x"],
                 "y_base": d["y"]}, "--probe-m"),
 ])
