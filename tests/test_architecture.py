@@ -31,7 +31,7 @@ LAYER = {
     "compose": 3, "units": 3, "quadrature": 3,
     "sweep": 4, "store": 4, "simulate": 4,
     "plot": 5, "query": 5, "find": 5, "paper": 5, "accuracy": 5, "bench": 5, "refine": 5,
-    "period": 5, "gallery": 5, "api": 5, "explore": 5,
+    "period": 5, "gallery": 5, "api": 5, "explore": 5, "fit": 5, "synthetic": 5, "animate": 5,
     "cli": 6, "__main__": 7,
 }
 #: rooms that may import only the rooms named (besides themselves)

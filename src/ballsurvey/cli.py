@@ -79,8 +79,8 @@ def _figure_file(value):
 
 
 #: the order of `ballsurvey --help`: what a user does first comes first
-COMMAND_ORDER = ("path", "sweep", "plot", "query", "find", "explore", "gallery", "refine", "paper",
-                 "accuracy", "bench")
+COMMAND_ORDER = ("path", "sweep", "plot", "query", "find", "explore", "animate", "fit", "gallery",
+                 "refine", "paper", "accuracy", "bench")
 #: path's integration time (s) when --T is not given: long enough for the label on most launches
 PATH_T = 20.0
 
@@ -431,9 +431,8 @@ def _cmd_explore(args):
 
 
 def _cmd_path(args):
-
     from . import limits
-    from .plot import orbit_window, plot_path, shape_text
+    from .plot import BODY_POINTS, orbit_window, plot_forces, plot_path, shape_text
     from .simulate import check_simulate_inputs, simulate
 
     out = _figure_file(args.output)
@@ -441,15 +440,21 @@ def _cmd_path(args):
     for name in ("theta0_deg", "thetadot0", "chidot0", "phidot0", "chi0_deg"):
         _launch_opt("--" + name.replace("_", "-"), name, getattr(args, name))
     T = args.T if args.T is not None else PATH_T
+    show = [w.strip() for w in (args.show or "").split(",") if w.strip()]
+    for w in show:
+        if w not in BODY_POINTS:
+            raise UserError(f"--show: unknown body point {w!r}; known: {', '.join(BODY_POINTS)}")
+    probe = _opt("--probe-m", args.probe_m, nonnegative=True, hi=1.0)
+    ball = _ball_arg(args)
     try:
         limits.steps(T, args.dt, "--T", "--dt")
         limits.samples(args.n_out, "--n-out")
         check_simulate_inputs(args.theta0_deg, args.thetadot0, args.chidot0, args.phidot0, T,
-                              args.dt, args.chi0_deg, n_out=args.n_out)
+                              args.dt, args.chi0_deg, n_out=args.n_out, ball=ball)
     except limits.InputError as exc:
         raise UserError(str(exc)) from None
     ds = simulate(args.theta0_deg, args.thetadot0, args.chidot0, args.phidot0, T, dt=args.dt,
-                  chi0_deg=args.chi0_deg, n_out=args.n_out)
+                  chi0_deg=args.chi0_deg, n_out=args.n_out, ball=ball, probe_m=probe)
     drawn, shown = ds, ""
     if args.T is None:  # the label from PATH_T seconds, the figure of a few orbits
         window = orbit_window(ds.attrs, T)
@@ -459,11 +464,106 @@ def _cmd_path(args):
             shown = (f"; drew the first {window:.3g} s (three orbits, at most 36 theta cycles; "
                      "--T to choose)")
     out.parent.mkdir(parents=True, exist_ok=True)
-    plot_path(drawn, out, panels=args.panels, dpi=dpi)
+    plot_path(drawn, out, ball=ball, panels=args.panels, dpi=dpi, show=show)
+    if args.forces:
+        f_out = out.with_name(out.stem + "-forces" + out.suffix)
+        plot_forces(drawn, f_out, title=f"net force and torque about G: {ds.attrs['label']}")
+        out = f"{out} and {f_out}"
     a = ds.attrs
     print(f"{shape_text(a)}; turn per cycle {a['turn_per_cycle_deg']:.3f} deg, theta "
           f"{a['theta_min_deg']:.2f}..{a['theta_max_deg']:.2f} deg (label from {T:g} s)"
           f"{shown}; wrote {out}")
+
+
+def _ball_arg(args):
+    """The ball of --ball / --cut-height / --spec (`sweep.spec.ball_from_options`)."""
+    from .sweep.spec import ball_from_options
+
+    cut = _opt("--cut-height", args.cut_height, nonnegative=True)
+    return ball_from_options(args.ball, cut, args.spec)
+
+
+def _add_launch_options(parser) -> None:
+    """One launch's options (path, animate): tilt and heading in deg, rates in rad/s."""
+    parser.add_argument("--theta0-deg", type=float, required=True, metavar="DEG",
+                        help="initial tilt (deg)")
+    parser.add_argument("--thetadot0", type=float, default=0.0, metavar="RATE",
+                        help="initial tilt rate (rad/s)")
+    parser.add_argument("--chidot0", type=float, required=True, metavar="RATE",
+                        help="initial precession rate (rad/s)")
+    parser.add_argument("--phidot0", type=float, required=True, metavar="RATE",
+                        help="initial spin rate (rad/s)")
+    parser.add_argument("--chi0-deg", type=float, default=0.0, metavar="DEG",
+                        help="initial heading (deg)")
+
+
+def _add_ball_options(parser, default="the paper's truncated billiard ball") -> None:
+    g = parser.add_argument_group(f"the ball (default: {default})")
+    g.add_argument("--ball", metavar="K=V,...",
+                   help="the ball as a spec's [ball] gives it, SI: a=..,c=..,M=..,A=..,B=.. "
+                        "(m, m, kg, kg m^2, kg m^2; also g=, cut_height=) or a=..,cut_height=..,"
+                        "M=.. for a truncated uniform sphere")
+    g.add_argument("--cut-height", type=float, metavar="METRES",
+                   help="height (m) of the cap cut off: alone, from the paper's sphere (a = 25.4 "
+                        "mm, M = 98.4 g), c, A, B from the geometry; with --ball, its cap")
+    g.add_argument("--spec", metavar="SPEC.toml", help="use the [ball] of this sweep spec")
+
+
+def _cmd_animate(args):
+    from . import limits
+    from .animate import check_output, frame_count, write_animation
+    from .simulate import check_simulate_inputs, simulate
+
+    for name in ("theta0_deg", "thetadot0", "chidot0", "phidot0", "chi0_deg"):
+        _launch_opt("--" + name.replace("_", "-"), name, getattr(args, name))
+    fps = _opt("--fps", args.fps, positive=True, hi=120)
+    speed = _opt("--speed", args.speed, positive=True, hi=100)
+    probe = _opt("--probe-m", args.probe_m, nonnegative=True, hi=1.0)
+    try:
+        out = check_output(args.output)
+    except limits.InputError as exc:
+        raise UserError(f"-o/--output: {exc}") from None
+    ball = _ball_arg(args)
+    try:
+        limits.steps(args.T, args.dt, "--T", "--dt")
+        check_simulate_inputs(args.theta0_deg, args.thetadot0, args.chidot0, args.phidot0, args.T,
+                              args.dt, args.chi0_deg, ball=ball)
+        frames = frame_count(args.T, fps, speed)
+        n_out = int(min(max(round(args.T / args.dt), 1), 20000)) + 1
+        ds = simulate(args.theta0_deg, args.thetadot0, args.chidot0, args.phidot0, args.T,
+                      dt=args.dt, chi0_deg=args.chi0_deg, n_out=n_out, ball=ball, probe_m=probe)
+    except limits.InputError as exc:
+        raise UserError(str(exc)) from None
+    write_animation(ds, out, ball=ball, fps=fps, speed=speed)
+    print(f"{ds.attrs['label']}: wrote {out} ({frames} frames, {fps:g} fps, {speed:g}x speed)")
+
+
+def _cmd_fit(args):
+    import json
+
+    from .fit import PARAMS, UNITS, fit_track, plot_fit, read_track
+
+    out = _out_file("-o/--output", args.output, ".png")
+    probe = _opt("--probe-m", args.probe_m, positive=True, hi=1.0)
+    ball = _ball_arg(args)
+    track = read_track(args.track, probe_m=probe)
+    fit = fit_track(track, ball)
+    # the numbers first: a plot that cannot be written (exit 1) leaves them printed
+    if args.format == "json":
+        keys = [k for p in PARAMS for k in (p, p + "_err")] + ["rms_m", "label"]
+        print(json.dumps({k: fit[k] for k in keys}), flush=True)
+    else:
+        for k in PARAMS:
+            print(f"{k:11s} {fit[k]:+.6g} +- {fit[k + '_err']:.2g} {UNITS[k]}")
+        print(f"rms_m       {fit['rms_m']:.3g} m (position residual per coordinate)")
+        print(f"label       {fit['label']}")
+        print(f"({fit['n_samples']} samples, {fit['survey_launches']} launches surveyed, "
+              f"{fit['seconds']:.1f} s)", flush=True)
+    if out is not None:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        plot_fit(track, fit, out, ball=ball)
+        if args.format != "json":
+            print(f"wrote {out}")
 
 
 def _cmd_query(args):
@@ -492,7 +592,9 @@ def _cmd_gallery(args):
     ds = _open_map(args.result)  # a folder or '.' is refused here, before naming the output
     out = _figure_file(args.output or str(Path(args.result).with_name(
         Path(args.result).stem + "-gallery.png")))
-    rows = draw_gallery(ds, out, per_label=args.per_label, seed=args.seed, T=args.T)
+    rows = draw_gallery(ds, out, per_label=args.per_label, seed=args.seed, T=args.T,
+                        ball=_ball_arg(args) if (args.ball or args.cut_height is not None
+                                                 or args.spec) else None)
     changed = [r for r in rows if r["label_again"] != r["label"]]
     print(f"wrote {out}: {len(rows)} paths, "
           f"{len(changed)} labelled differently when integrated again")
@@ -519,6 +621,7 @@ def _cmd_find(args):
     from .find import SHAPE_OF_N, NoSolution, find_launch, trace
 
     _opt("--n-sides", args.n_sides, integer=True, lo=3, hi=1000)
+    ball = _ball_arg(args)
     for name in ("theta0_deg", "thetadot0", "chidot0", "phidot0"):
         _launch_opt("--" + name.replace("_", "-"), name, getattr(args, name))
     if args.bracket:
@@ -553,7 +656,7 @@ def _cmd_find(args):
             raise UserError("give --phidot0 (--trace-theta0 traces theta0 and solves chidot0)")
         start, stop, num = args.trace_theta0
         t0 = time.perf_counter()
-        rows = trace(n, np.linspace(start, stop, int(num)), launch, args.bracket)
+        rows = trace(n, np.linspace(start, stop, int(num)), launch, args.bracket, ball=ball)
         took = time.perf_counter() - t0
         lines = ["theta0_deg,chidot0_rad_s,n_sides_integrated,closure_m,label,shape"] + [
             f"{th:.6g},{s.value:.9g},{s.n_sides:.9f},{s.closure_m:.2e},{s.label},{s.shape}"
@@ -572,7 +675,7 @@ def _cmd_find(args):
     launch = {k: (0.0 if v is None else v) for k, v in launch.items()}
     rejected: list = []
     try:
-        sols = find_launch(n, launch, args.solve, args.bracket, rejected=rejected)
+        sols = find_launch(n, launch, args.solve, args.bracket, ball=ball, rejected=rejected)
     except NoSolution as exc:
         print(f"ballsurvey find: no solution: {exc}", file=sys.stderr)
         raise SystemExit(1) from None
@@ -795,16 +898,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_plot)
 
     q = cmd("path", help="integrate one launch and draw it like the paper's figures")
-    q.add_argument("--theta0-deg", type=float, required=True, metavar="DEG",
-                   help="initial tilt (deg)")
-    q.add_argument("--thetadot0", type=float, default=0.0, metavar="RATE",
-                   help="initial tilt rate (rad/s)")
-    q.add_argument("--chidot0", type=float, required=True, metavar="RATE",
-                   help="initial precession rate (rad/s)")
-    q.add_argument("--phidot0", type=float, required=True, metavar="RATE",
-                   help="initial spin rate (rad/s)")
-    q.add_argument("--chi0-deg", type=float, default=0.0, metavar="DEG",
-                   help="initial heading (deg)")
+    _add_launch_options(q)
     q.add_argument("--T", type=float, default=None, metavar="SECONDS",
                    help="duration (s) integrated and drawn (default: 20 s integrated for the "
                         "label, the first three orbits drawn)")
@@ -817,6 +911,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help="resolution of a PNG (dots per inch)")
     q.add_argument("-o", "--output", default="results/path.png", metavar="FILE",
                    help="figure file, .png, .pdf or .svg")
+    q.add_argument("--show", metavar="POINTS",
+                   help="also draw body points, comma-separated: face (centre of the flat face), "
+                        "probe (its tip), contact (the contact point), as the paper's Fig. 4a")
+    q.add_argument("--probe-m", type=float, default=0.0254, metavar="METRES",
+                   help="probe length (m) on the flat face (the paper does not give it; one ball "
+                        "radius)")
+    q.add_argument("--forces", action="store_true",
+                   help="also draw the net force (N) and torque about G (N m) against time, as "
+                        "the paper's Figs. 4b, 7b, into FILE-forces.png")
+    _add_ball_options(q)
     q.set_defaults(func=_cmd_path)
 
     e = cmd("explore", help="explore a map in the browser: hover, click a launch to see its "
@@ -836,6 +940,38 @@ def build_parser() -> argparse.ArgumentParser:
                         "values and, for a slice of at most 1024 launches, each launch's path "
                         "precomputed over one theta cycle and drawn on click")
     e.set_defaults(func=_cmd_explore)
+
+    an = cmd("animate", help="animate one launch: the truncated ball with its flat face and probe "
+                             "from above and from the side, the path being traced (GIF or MP4)")
+    _add_launch_options(an)
+    an.add_argument("--T", type=float, default=3.0, metavar="SECONDS",
+                    help="duration of the motion shown (s); a square or triangle of the paper "
+                         "closes in 2-3 s")
+    an.add_argument("--dt", type=float, default=1e-4, metavar="SECONDS", help="largest step (s)")
+    an.add_argument("--fps", type=float, default=20.0, help="frames per second of the file")
+    an.add_argument("--speed", type=float, default=0.5,
+                    help="seconds of motion per second of playback (0.5: half speed, so the "
+                         "quick turns near theta = 90 deg can be followed)")
+    an.add_argument("--probe-m", type=float, default=0.0254, metavar="METRES",
+                    help="probe length (m) on the flat face")
+    an.add_argument("-o", "--output", required=True, metavar="FILE.gif|FILE.mp4",
+                    help="GIF (Pillow, always there) or MP4 (needs ffmpeg on the PATH)")
+    _add_ball_options(an)
+    an.set_defaults(func=_cmd_animate)
+
+    ft = cmd("fit", help="find the launch that reproduces a measured track (CSV)")
+    ft.add_argument("track", metavar="TRACK.csv",
+                    help="header row and columns t (s) and x, y (m, centre of mass) or x_tip, "
+                         "y_tip, x_base, y_base (m, with --probe-m); optionally theta_deg (deg) "
+                         "and chidot (rad/s)")
+    ft.add_argument("--probe-m", type=float, metavar="METRES",
+                    help="probe length (m), for a track of the probe's tip and base")
+    ft.add_argument("-o", "--output", metavar="FILE.png", help="also draw track and fit (PNG)")
+    ft.add_argument("--format", choices=("text", "json"), default="text",
+                    help="json: keys theta0_deg, thetadot0, chidot0, phidot0, chi0_deg, x0, y0 "
+                         "(deg, rad/s, m; each with _err, one standard deviation), rms_m, label")
+    _add_ball_options(ft)
+    ft.set_defaults(func=_cmd_fit)
 
     r = cmd("query", help="list the launches of a map that give a shape, best first")
     r.add_argument("result", help="a ballsurvey netCDF map (.nc)")
@@ -865,6 +1001,7 @@ def build_parser() -> argparse.ArgumentParser:
     gl.add_argument("--seed", type=int, default=0, help="random seed of the sample")
     gl.add_argument("--T", type=float, metavar="SECONDS",
                     help="duration (s) of each integration (default: the map's)")
+    _add_ball_options(gl, default="the map's own ball")
     gl.set_defaults(func=_cmd_gallery)
 
     pp = cmd("paper", help="reproduce the paper's numerical figures and compare numbers")
@@ -892,6 +1029,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="trace the curve of exact n-gons in the (theta0, chidot0) plane: NUM "
                          "values of theta0 from START to STOP (deg)")
     fd.add_argument("-o", "--output", metavar="FILE.csv", help="CSV file for --trace-theta0")
+    _add_ball_options(fd)
     fd.set_defaults(func=_cmd_find)
 
     rf = cmd("refine", help="refine a (theta0, chidot0) map only near regime boundaries and "

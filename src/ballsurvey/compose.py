@@ -243,3 +243,14 @@ def warm_up_fallback() -> None:
     integrate_adaptive(y0, params, 0.01, FALLBACK_RTOL, FALLBACK_ATOL, observer=OBSERVER,
                        n_slots=N_OBS, fixed_frame=True, h_init=FALLBACK_H_INIT, parallel=True,
                        stop_after=stop_target(2), h_max=FALLBACK_H_MAX)
+
+
+def run_tracks(y0, params, plan: StepPlan, stride: int, n_rec: int, *,
+               parallel=True) -> oc.Result:
+    """Many launches with their trajectories, in one call of the fixed-step RK4 ensemble kernel:
+    n_rec samples, one every `stride` steps (Result.traj is (n_rec, N_FAST, n)). No observer
+    and no fixed-frame fallback: a launch that meets the Euler chart's singularity is frozen
+    there (outcome CHART_SINGULAR), which a fit reads as a launch far from its track."""
+    return ensemble.integrate(np.asarray(y0, dtype=float), np.asarray(params, dtype=float),
+                              plan.dt_nd, plan.n_steps, "rk4", observer=OBSERVER, n_slots=0,
+                              block=16, n_rec=n_rec, stride=stride, parallel=parallel)

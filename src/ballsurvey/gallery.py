@@ -126,13 +126,14 @@ def _orbit_s(attrs: dict) -> float:
 
 
 def draw_gallery(ds: xr.Dataset, out, per_label: int = 4, seed: int = 0, T: float | None = None,
-                 dt: float | None = None, labels=None) -> list[dict]:
+                 dt: float | None = None, labels=None, ball: Ball | None = None) -> list[dict]:
     """Draw the gallery PNG; returns the sampled rows with the label of the re-integration
     (`label_again`, with the map's own settings: `map_settings`) and the duration drawn
     (`drawn_s`, s). T, dt: duration and step (s) of
     each integration, by default the map's. Each panel draws the whole T; a map made with a method
     `simulate` does not offer (dop853, the lanes' pair) is drawn with dopri5 at the map's
-    tolerances, its label still computed with the map's method."""
+    tolerances, its label still computed with the map's method.
+    ball: the ball integrated (default: the map's own, `map_ball`)."""
     from matplotlib.figure import Figure
 
     from .simulate import simulate
@@ -140,7 +141,7 @@ def draw_gallery(ds: xr.Dataset, out, per_label: int = 4, seed: int = 0, T: floa
     rows = sample_launches(ds, per_label, seed, labels)
     if not rows:
         raise ValueError("the map has no labelled launches")
-    base = map_ball(ds)
+    base = ball or map_ball(ds)
     s = map_settings(ds)
     if T is not None:
         s["T"] = float(T)

@@ -4,9 +4,11 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
+
 from .ball import Ball
-from .physics.steady import precession_for_radius, steady_circle
-from .plot import launch_title, plot_path
+from .physics.steady import precession_for_radius, steady_circle, steady_torque
+from .plot import launch_title, plot_forces, plot_path
 from .simulate import simulate
 
 #: the paper's numerical launches (as its text gives them; docs/physics.md section 5) and the
@@ -27,6 +29,54 @@ def fig4_launch(ball: Ball) -> tuple[dict, float]:
     tu = ball.time_unit
     sc = steady_circle(math.radians(24.0), -3.23 * tu, *ball.nondim_params())
     return dict(phidot0=sc.omega_c / tu, y0=-sc.R * ball.a), sc.R * ball.a
+
+
+def fig10(out: Path, ball: Ball, f4: dict, dt: float = 1e-4, fig_format: str = "png"
+          ) -> list[tuple]:
+    """Fig. 10: the torque about G over one period of the lawn-bowl circle (Fig. 4) and of the
+    approximately circular Fig. 9c, drawn as fig10 (top, bottom), and Fig. 4b's force and torque
+    as fig4b (as `fig_format`); rows for the table."""
+    from matplotlib.figure import Figure
+
+    tu = ball.time_unit
+    kw4 = {k: v for k, v in FIGURES["fig4"].items() if k != "T_fig"} | f4
+    T4 = 2 * math.pi / abs(kw4["chidot0"])
+    lawn = simulate(**kw4, T=T4, dt=dt, ball=ball, n_out=1001)
+    kw9 = {k: v for k, v in FIGURES["fig9c"].items() if k != "T_fig"}
+    a9 = simulate(**kw9, T=20.0, dt=dt, ball=ball, n_out=4001).attrs
+    # one period of the approximate circle: theta cycles per turn of the heading
+    T9 = 360.0 / abs(a9["turn_per_cycle_deg"]) * a9["theta_period_s"]
+    c9 = simulate(**kw9, T=T9, dt=dt, ball=ball, n_out=2001)
+    fig = Figure(figsize=(8, 6.5), layout="constrained")
+    for ax, ds, what in zip(fig.subplots(2, 1), (lawn, c9),
+                            (f"lawn bowl mode (Fig. 4), one period {T4:.2f} s",
+                             f"approximately circular (Fig. 9c), one period {T9:.2f} s")):
+        for k in ("tau_x", "tau_y", "tau_z"):
+            ax.plot(ds.time, ds[k] * 1e3, lw=1.2, label=k)
+        ax.set_ylabel("torque about G (mN m)")
+        ax.set_title(what, fontsize=10)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False)
+    ax.set_xlabel("t (s)")
+    fig.suptitle("Paper Fig. 10: torque about the centre of mass", fontsize=11)
+    fig.savefig(out / f"fig10.{fig_format}", dpi=110)
+    plot_forces(lawn, out / f"fig4b.{fig_format}",
+                title="Paper Fig. 4b: net force and torque about G")
+    th = math.radians(FIGURES["fig4"]["theta0_deg"])
+    p = ball.nondim_params()
+    tau_c = abs(steady_torque(th, kw4["chidot0"] * tu, kw4["phidot0"] * tu, p[0]))
+    tau_c *= ball.M * ball.g * ball.a
+    mag = np.hypot(lawn.tau_x.values, lawn.tau_y.values)
+    mag9 = np.hypot(c9.tau_x.values, c9.tau_y.values)
+    return [
+        ("Fig. 10 lawn bowl |tau| (mN m)", "constant, Eq. (40)",
+         f"{mag.min() * 1e3:.4f} .. {mag.max() * 1e3:.4f} (Eq. 40: {tau_c * 1e3:.4f})",
+         abs(mag.max() / tau_c - 1) < 1e-4 and abs(mag.min() / tau_c - 1) < 1e-4,
+         f"horizontal: |tau_z| <= {np.abs(lawn.tau_z.values).max():.1e} N m"),
+        ("Fig. 10 Fig. 9c |tau| (mN m)", "varies over the period",
+         f"{mag9.min() * 1e3:.3f} .. {mag9.max() * 1e3:.3f}", mag9.max() > 1.5 * mag9.min(),
+         f"tau_z {c9.tau_z.values.min() * 1e3:.3f} .. {c9.tau_z.values.max() * 1e3:.3f} mN m; "
+         f"one period {T9:.2f} s (the paper's Fig. 9c shows 2.95 s)"),
+    ]
 
 
 def _verdict(ok: bool) -> str:
@@ -104,6 +154,7 @@ def reproduce(out_dir="results/paper", ball: Ball | None = None, T_label: float 
          f"{runs['fig12b'].attrs['label']} (n = {runs['fig12b'].attrs['n_sides']:.4f})",
          runs["fig12b"].attrs["label"] == "triangle", ""),
     ]
+    rows += fig10(out, ball, f4, dt, fig_format)
     table = [dict(quantity=q, paper=p, ours=o, verdict=_verdict(ok), note=n)
              for q, p, o, ok, n in rows]
     w = [max(len(r[k]) for r in table + [dict(quantity="quantity", paper="paper", ours="ours",
@@ -113,5 +164,6 @@ def reproduce(out_dir="results/paper", ball: Ball | None = None, T_label: float 
     for r in table:
         emit(f"{r['quantity']:<{w[0]}}  {r['paper']:<{w[1]}}  {r['ours']:<{w[2]}}  "
              f"{r['verdict']:<{w[3]}}  {r['note']}")
-    emit(f"figures written to {out}/ ({', '.join(f'{f}.{fig_format}' for f in FIGURES)})")
+    names = [*FIGURES, "fig10", "fig4b"]
+    emit(f"figures written to {out}/ ({', '.join(f'{f}.{fig_format}' for f in names)})")
     return table

@@ -165,7 +165,7 @@ def exact_polygon_field(panel: xr.Dataset, x: str, y: str) -> np.ndarray | None:
     return ns if np.isfinite(ns).sum() >= 4 and poly.any() else None
 
 
-def plot_map(ds: xr.Dataset, out, x: str | None = None, y: str | None = None,
+def plot_map(ds: xr.Dataset, out=None, x: str | None = None, y: str | None = None,
              at: dict | None = None, facet: str | None = None, contours: bool = True):
     """Draw a regime map: one colour per label over axes x (across) and y (up).
 
@@ -173,8 +173,8 @@ def plot_map(ds: xr.Dataset, out, x: str | None = None, y: str | None = None,
     ----------
     ds : xarray.Dataset
         A map (`ballsurvey.open_map`, `ballsurvey.sweep`).
-    out : str or path
-        The file to write: .png, .pdf or .svg.
+    out : str or path, optional
+        The file to write: .png, .pdf or .svg (None: return the Figure).
     x, y : str, optional
         The axes drawn across and up (default: the map's first two axes with more than one
         value, in its own order of dimensions, whatever the grid sizes).
@@ -187,8 +187,10 @@ def plot_map(ds: xr.Dataset, out, x: str | None = None, y: str | None = None,
 
     Returns
     -------
-    The file written.
+    The file written, or with `out` None the matplotlib Figure (shown by a notebook as it is).
     """
+    if out is None:
+        return map_figure(ds, x, y, at, facet, contours)
     figure_format(out)
     return _save(map_figure(ds, x, y, at, facet, contours), out)
 
@@ -354,8 +356,8 @@ def _dense_rates(ds: xr.Dataset, ball: Ball, max_samples: int = 1_000_001):
     return t, ds.chidot.values, ds.phidot.values
 
 
-def plot_path(ds: xr.Dataset, out, ball: Ball | None = None, title: str | None = None,
-              panels: str = "all", dpi: int = 100):
+def plot_path(ds: xr.Dataset, out=None, ball: Ball | None = None, title: str | None = None,
+              panels: str = "all", dpi: int = 100, show=()):
     """Draw one launch like the paper's figures.
 
     Left: the path of the centre of mass coloured by theta, its corners (theta minima) and its
@@ -378,17 +380,23 @@ def plot_path(ds: xr.Dataset, out, ball: Ball | None = None, title: str | None =
         "path": only the path, in a small figure (the launch and ball above it).
     dpi : int
         Resolution of a PNG (dots per inch; the full figure is 11 x 7.5 in).
+    show : sequence of str
+        Body points drawn beside the centre of mass (`draw_body_points`: face, probe, contact;
+        the paper's Fig. 4a).
 
     Returns
     -------
-    The file written.
+    The file written, or with `out` None the matplotlib Figure (shown by a notebook as it is).
     """
+    fig = path_figure(ds, ball, title, panels, show)
+    if out is None:
+        return fig
     figure_format(out)
-    return _save(path_figure(ds, ball, title, panels), out, dpi=dpi)
+    return _save(fig, out, dpi=dpi)
 
 
 def path_figure(ds: xr.Dataset, ball: Ball | None = None, title: str | None = None,
-                panels: str = "all") -> Figure:
+                panels: str = "all", show=()) -> Figure:
     """The figure `plot_path` writes (a matplotlib `Figure`, not yet saved)."""
     from matplotlib.collections import LineCollection
     from matplotlib.lines import Line2D
@@ -421,6 +429,7 @@ def path_figure(ds: xr.Dataset, ball: Ball | None = None, title: str | None = No
         ax.plot(x[ci], y[ci], "o", ms=6, mfc="none", mec=LINE_COLOURS["corner"], mew=1.4,
                 label=r"corner ($\theta$ minimum)", zorder=3)
     ax.plot(x[0], y[0], "k^", ms=7, label="start", zorder=3)
+    draw_body_points(ax, ds, show)
     ax.set_aspect("equal", adjustable="datalim")
     ax.autoscale_view()
     ax.set_xlabel("x (m)")
@@ -473,3 +482,47 @@ def launch_title(attrs: dict) -> str:
     if _finite(attrs.get("chi0_deg")) and float(attrs["chi0_deg"]) != 0.0:
         parts.append(axis_value_text("chi0_deg", float(attrs["chi0_deg"])))
     return ", ".join(parts) + "\n" + ball_text(attrs)
+
+
+# ----------------------------------------------------------------------------------------------
+#: body points `path --show` draws: name -> (x, y variables of `simulate`, colour, legend)
+BODY_POINTS = {"face": ("x_face", "y_face", "tab:blue", "centre of the flat face"),
+               "probe": ("x_tip", "y_tip", "black", "tip of the probe"),
+               "contact": ("x_contact", "y_contact", "tab:gray", "contact point")}
+
+
+def draw_body_points(ax, ds: xr.Dataset, show=()) -> None:
+    """Paths of body points of a `simulate` Dataset on the plane's axes (Fig. 4a: centre of
+    mass, centre of the flat face, tip of the probe); show: names of BODY_POINTS."""
+    for name in show:
+        if name not in BODY_POINTS:
+            raise InputError(f"show: unknown body point {name!r}; known: "
+                             f"{', '.join(BODY_POINTS)}")
+        xv, yv, colour, text = BODY_POINTS[name]
+        ax.plot(ds[xv].values, ds[yv].values, color=colour, lw=0.8, label=text, zorder=1)
+
+
+def plot_forces(ds: xr.Dataset, out=None, t_range=None, title: str | None = None) -> Figure:
+    """The net force (N; friction Fx, Fy and the vertical Fz = N - M g) and the torque about G
+    (N m) against time, the paper's Figs. 4b, 7b and 10, from a `simulate` Dataset; t_range:
+    (start, stop) in s. Returns the Figure; writes it to `out` when given."""
+    if t_range is not None:
+        ds = ds.sel(time=slice(*t_range))
+    t = ds.time.values
+    fig = Figure(figsize=(8, 5.5), layout="constrained")
+    axf, axt = fig.subplots(2, 1, sharex=True)
+    for k, colour in (("Fx", "tab:blue"), ("Fy", "tab:orange"), ("Fz", "tab:green")):
+        axf.plot(t, ds[k].values, color=colour, lw=1.2, label=k.replace("F", "F_"))
+    axf.set_ylabel("net force (N)")
+    for k, colour in (("tau_x", "tab:blue"), ("tau_y", "tab:orange"), ("tau_z", "tab:green")):
+        axt.plot(t, ds[k].values, color=colour, lw=1.2, label=k)
+    axt.set_ylabel("torque about G (N m)")
+    axt.set_xlabel("t (s)")
+    for ax in (axf, axt):
+        ax.axhline(0.0, color="0.7", lw=0.6, zorder=0)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8, frameon=False)
+    if title:
+        fig.suptitle(title, fontsize=11)
+    if out is not None:
+        fig.savefig(out, dpi=110)
+    return fig

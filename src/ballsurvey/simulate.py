@@ -16,9 +16,54 @@ from .classify.labels import CORNER_KINDS, LABELS, Thresholds
 from .compose import METHODS, classify, run_trajectory
 from .integrate.outcome import FORMULATIONS
 from .integrate.tableaus import ADAPTIVE, FIXED_STEP
-from .physics.euler import energy
+from .physics.euler import contact, energy
 from .physics.fast import S_CHD, S_CHI, S_CTH, S_PHD, S_PHI, S_STH, S_TH, S_THD, S_X, S_Y
 from .units import StepPlan, fields_to_si, launch_state
+
+#: default probe length (m): the paper does not give its wire's length; one ball radius puts the
+#: tip's path of Fig. 4a clearly outside the flat face's, as the paper draws it
+PROBE_M = 0.0254
+
+
+def body_points(x, y, theta, chi, ball: Ball, probe_m: float = PROBE_M) -> dict:
+    """Points of the ball in the fixed frame (m) from G's position and the Euler angles (rad).
+
+    The symmetry axis is eta = (-cos th sin chi, cos th cos chi, -sin th) (Eq. 3); G sits at
+    height a - c sin th above the table (the contact point on the sphere), c from the
+    geometric centre C along +eta. The flat face (a cap of height `cut_height` cut off on the
+    -eta side) has its centre at C - (a - cut_height) eta; the probe stands on that centre
+    along -eta, its base there and its tip probe_m further. The contact point is below C.
+
+    Returns a dict of arrays: x_face, y_face, z_face, x_base, y_base, z_base (the probe's base,
+    the face's centre), x_tip, y_tip, z_tip, x_contact, y_contact (its z is 0).
+    """
+    x, y, th, ch = (np.asarray(v, dtype=float) for v in (x, y, theta, chi))
+    sth, cth, sch, cch = np.sin(th), np.cos(th), np.sin(ch), np.cos(ch)
+    ex, ey, ez = -cth * sch, cth * cch, -sth
+    a, c, h = ball.a, ball.c, ball.cut_height
+    zg = a - c * sth
+    out = {}
+    for name, d in (("face", c + a - h), ("base", c + a - h), ("tip", c + a - h + probe_m),
+                    ("contact", c)):
+        out[f"x_{name}"], out[f"y_{name}"] = x - d * ex, y - d * ey
+        if name != "contact":
+            out[f"z_{name}"] = zg - d * ez
+    return out
+
+
+def contact_forces(s: np.ndarray, ball: Ball) -> np.ndarray:
+    """Net force on the ball (N) and torque about G (N m) along fast states s (n, N_FAST):
+    columns Fx, Fy (friction, Eqs. 16-19), Fz = N - M g (Eq. 20), N, tau_x, tau_y, tau_z
+    (Eqs. 21-24)."""
+    p = ball.nondim_params()
+    out = np.empty((s.shape[0], 7))
+    for k, r in enumerate(s):
+        fx, fy, n, tx, ty, tz = contact(r[:8], p)
+        out[k] = fx, fy, n - 1.0, n, tx, ty, tz
+    weight = ball.M * ball.g
+    out[:, :4] *= weight
+    out[:, 4:] *= weight * ball.a
+    return out
 
 
 def check_launch(theta0_deg, T, dt, ball: Ball) -> None:
@@ -76,7 +121,7 @@ def simulate(theta0_deg: float, thetadot0: float, chidot0: float, phidot0: float
              dt: float = 1e-4, chi0_deg: float = 0.0, x0: float = 0.0, y0: float = 0.0,
              ball: Ball | None = None, n_out: int = 2001, method: str = "rk4",
              thresholds: Thresholds | None = None, rtol: float = 1e-9,
-             atol: float = 1e-12) -> xr.Dataset:
+             atol: float = 1e-12, probe_m: float = PROBE_M) -> xr.Dataset:
     """Integrate one launch and return its trajectory, labelled like a map's launch.
 
     Parameters
@@ -116,6 +161,9 @@ def simulate(theta0_deg: float, thetadot0: float, chidot0: float, phidot0: float
         Relative tolerance of the adaptive method.
     atol : float
         Absolute tolerance of the adaptive method.
+    probe_m : float
+        Length (m) of the probe on the flat face, along the symmetry axis (0: its tip is the
+        face's centre).
 
     Returns
     -------
@@ -123,7 +171,10 @@ def simulate(theta0_deg: float, thetadot0: float, chidot0: float, phidot0: float
         On `time` (s): x, y (m); theta_deg, chi_deg, phi_deg (deg) and the same angles theta,
         chi, phi in rad (as the equations use them); thetadot, chidot, phidot (rad/s); energy
         (J); friction_ratio (|F_h|/N: the launch slips where it exceeds mu) and normal_force
-        (N, lifts off where <= 0). Its attrs hold the label, the classifier's fields in SI
+        (N, lifts off where <= 0); the body points (m) of `body_points`: x_face .. z_face, the
+        probe's x_base .. z_base and x_tip .. z_tip, x_contact, y_contact; the net force Fx,
+        Fy, Fz and the normal force N (N) and the torque about G tau_x, tau_y, tau_z (N m) of
+        `contact_forces`. Its attrs hold the label, the classifier's fields in SI
         (as in a map), the launch, the method and step used, and the ball (`ball_a`, ...).
 
     Notes
@@ -141,6 +192,7 @@ def simulate(theta0_deg: float, thetadot0: float, chidot0: float, phidot0: float
     ball = ball or Ball.paper()
     check_simulate_inputs(theta0_deg, thetadot0, chidot0, phidot0, T, dt, chi0_deg, x0, y0, ball,
                           n_out, method, rtol, atol)
+    probe_m = limits.number("probe_m", probe_m, lo=0.0, hi=1.0)
     tu, a = ball.time_unit, ball.a
     th = thresholds or Thresholds()
     p = ball.nondim_params()
@@ -182,6 +234,21 @@ def simulate(theta0_deg: float, thetadot0: float, chidot0: float, phidot0: float
         coords={"time": ("time", _sample_times(t_nd * tu, T, n_out),
                          {"units": "s", "long_name": "time", "standard_name": "time"})},
     )
+    pts = body_points(ds.x.values, ds.y.values, ds.theta.values, ds.chi.values, ball, probe_m)
+    where = {"face": "the centre of the flat face", "base": "the probe's base (the face's centre)",
+             "tip": "the probe's tip", "contact": "the contact point"}
+    for k, v in pts.items():
+        ds[k] = var(v, "m", f"{k[0]} of {where[k.split('_')[1]]}")
+    forces = contact_forces(s, ball)
+    for j, (k, units, long_name) in enumerate((
+            ("Fx", "N", "net force along x (friction), Eqs. (16)-(19)"),
+            ("Fy", "N", "net force along y (friction), Eqs. (16)-(19)"),
+            ("Fz", "N", "net vertical force N - M g, Eq. (20)"),
+            ("N", "N", "normal force of the table, Eq. (20)"),
+            ("tau_x", "N m", "torque about G along x, Eqs. (21)-(24)"),
+            ("tau_y", "N m", "torque about G along y, Eqs. (21)-(24)"),
+            ("tau_z", "N m", "torque about G along z, Eqs. (21)-(24)"))):
+        ds[k] = var(forces[:, j], units, long_name)
     label = LABELS[int(f.pop("label")[0])]
     kind = CORNER_KINDS[int(f.pop("corner_kind")[0])]
     f.pop("formulation")
@@ -189,7 +256,8 @@ def simulate(theta0_deg: float, thetadot0: float, chidot0: float, phidot0: float
     ds.attrs.update({k: v[0].item() for k, v in f.items()})
     ds.attrs.update(label=label, corner_kind=kind, dt_s=dt_used, method=method,
                     formulation=formulation, theta0_deg=theta0_deg, thetadot0=thetadot0,
-                    chidot0=chidot0, phidot0=phidot0, chi0_deg=chi0_deg, T_s=T)
+                    chidot0=chidot0, phidot0=phidot0, chi0_deg=chi0_deg, T_s=T,
+                    probe_m=probe_m)
     if method in ADAPTIVE:
         ds.attrs.update(rtol=rtol, atol=atol)
     ds.attrs.update({f"ball_{k}": v for k, v in ball.as_dict().items()})

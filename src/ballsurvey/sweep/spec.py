@@ -452,3 +452,59 @@ def spec_digest(spec: Spec) -> str:
             "thresholds": spec.thresholds.as_dict(), "variables": sorted(spec.variables),
             "compression": spec.compression, "backend": spec.backend}
     return hashlib.sha256(json.dumps(_canon(what), sort_keys=True).encode()).hexdigest()
+
+
+def ball_from_options(ball: str | None = None, cut_height: float | None = None,
+                      spec=None) -> Ball:
+    """The ball of the command line's --ball, --cut-height and --spec, by the rules of a spec's
+    [ball] table (SpecError, one line, naming the option).
+
+    ball: "a=..,c=..,M=..,A=..,B=.." (SI; also g, cut_height; or a, cut_height, M for a
+    truncated uniform sphere, or preset=paper); cut_height (m): with --ball, its cap; alone, the
+    paper's sphere (a = 25.4 mm, M = 98.4 g) with that cap cut off, c, A and B from the
+    geometry; spec: a spec file whose [ball] is used (the paper's ball if it has none). None of
+    them: the paper's ball."""
+    if spec is not None:
+        if ball is not None or cut_height is not None:
+            raise SpecError("--spec: give the ball by --spec or by --ball/--cut-height, not both")
+        src = str(spec)
+        try:
+            doc = tomllib.loads(Path(spec).read_text())
+        except OSError as exc:
+            raise SpecError(f"{src}: cannot read: {exc.strerror}") from None
+        except UnicodeDecodeError:
+            raise SpecError(f"{src}: not a text file (a sweep spec is TOML text)") from None
+        except tomllib.TOMLDecodeError as exc:
+            raise SpecError(f"{src}: not valid TOML: {exc}") from None
+        table = doc.get("ball", {"preset": "paper"})
+        if not isinstance(table, dict):
+            _err(src, "[ball]", "must be a table")
+        return _ball(src, table)
+    if ball is None and cut_height is None:
+        return Ball.paper()
+    table: dict = {}
+    for item in (ball or "").split(","):
+        if not item.strip():
+            continue
+        key, sep, val = item.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            _err("--ball", item.strip(), "takes KEY=VALUE pairs separated by commas, such as "
+                 "a=0.0254,c=0.0029,M=0.0984,A=2.39e-5,B=2.69e-5")
+        if key in table:
+            _err("--ball", key, "given twice")
+        if key == "preset":
+            table[key] = val.strip()
+            continue
+        try:
+            table[key] = float(val)
+        except ValueError:
+            _err("--ball", key, f"{val.strip()!r} is not a number")
+    if cut_height is not None:
+        if "cut_height" in table:
+            _err("--cut-height", "cut_height", "given by --ball too")
+        if not table:
+            paper = Ball.paper()
+            table = {"a": paper.a, "M": paper.M}
+        table["cut_height"] = cut_height
+    return _ball("--ball" if ball is not None else "--cut-height", table)

@@ -1,0 +1,197 @@
+"""The ball, animated: a top view with the path being traced and a side view that follows the ball,
+the truncated ball drawn with its flat face, its probe and a spot on its equator (so the spin
+shows), from a `simulate` trajectory.
+
+GIF through Pillow (a matplotlib dependency), MP4 through ffmpeg where it is installed.
+"""
+from __future__ import annotations
+
+import math
+import shutil
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from .ball import Ball
+from .limits import InputError
+
+#: frames per second of the file, and motion seconds per playback second (0.5: half speed)
+FPS = 20
+SPEED = 0.5
+#: most frames one animation may have
+MAX_FRAMES = 5000
+#: rim points drawn for the flat face and the outline
+N_RIM = 48
+
+
+def check_output(out) -> Path:
+    """The output file: .gif, or .mp4 with ffmpeg on the PATH; InputError (one line) if not."""
+    p = Path(out)
+    suffix = p.suffix.lower()
+    if suffix not in (".gif", ".mp4"):
+        raise InputError(f"{out} must end in .gif or .mp4")
+    if p.is_dir():
+        raise InputError(f"{out} is a folder")
+    if suffix == ".mp4" and shutil.which("ffmpeg") is None:
+        raise InputError("an .mp4 needs ffmpeg on the PATH, which is not there; install "
+                         "ffmpeg or write a .gif")
+    return p
+
+
+def frame_count(T: float, fps: float = FPS, speed: float = SPEED) -> int:
+    """Frames of an animation of T seconds of motion; InputError beyond MAX_FRAMES."""
+    n = int(math.floor(T / speed * fps + 1e-6)) + 1  # + 1e-6: T read back from samples
+    if n > MAX_FRAMES:
+        raise InputError(f"{n} frames is more than {MAX_FRAMES}; shorten T, lower fps or raise "
+                         "speed")
+    return n
+
+
+def frame_indices(ds: xr.Dataset, fps: float = FPS, speed: float = SPEED) -> np.ndarray:
+    """Samples of `ds` shown, one per frame: fps frames a playback second, speed motion seconds
+    a playback second."""
+    t = ds.time.values
+    n = frame_count(t[-1] - t[0], fps, speed)
+    want = t[0] + np.arange(n) * speed / fps
+    return np.clip(np.searchsorted(t, want), 0, t.size - 1)
+
+
+def ball_geometry(ds: xr.Dataset, k: int, ball: Ball, probe_m: float) -> dict:
+    """3-D points (m) of the ball at sample k: centre C, G, the flat face's rim (N_RIM, 3) and
+    centre, the probe's tip, the contact point, a spot on the equator (body-fixed: phi turns it
+    about the axis), and the axis eta (Eq. 3)."""
+    th, ch, ph = (float(ds[v].values[k]) for v in ("theta", "chi", "phi"))
+    sth, cth, sch, cch = math.sin(th), math.cos(th), math.sin(ch), math.cos(ch)
+    xi = np.array([cch, sch, 0.0])
+    eta = np.array([-cth * sch, cth * cch, -sth])
+    zeta = np.cross(xi, eta)
+    a, c, h = ball.a, ball.c, ball.cut_height
+    g = np.array([float(ds.x.values[k]), float(ds.y.values[k]), a - c * sth])
+    centre = g - c * eta
+    face = centre - (a - h) * eta
+    r_face = math.sqrt(max(a * a - (a - h) ** 2, 0.0))
+    al = np.linspace(0, 2 * np.pi, N_RIM)
+    rim = face + r_face * (np.outer(np.cos(al), xi) + np.outer(np.sin(al), zeta))
+    spot = centre + a * (math.cos(ph) * xi - math.sin(ph) * zeta)
+    return {"C": centre, "G": g, "face": face, "rim": rim, "tip": face - probe_m * eta,
+            "contact": centre - np.array([0.0, 0.0, a]), "spot": spot, "eta": eta}
+
+
+def silhouette(geo: dict, view: np.ndarray, dims, ball: Ball, off=None) -> np.ndarray:
+    """The truncated ball's outline seen along `view` (a unit vector), in the plane of the
+    coordinates `dims`: the convex hull of the sphere's outline where the cap is not cut off and
+    of the flat face's rim (the truncated ball is convex)."""
+    from scipy.spatial import ConvexHull
+
+    a, h = ball.a, ball.cut_height
+    u = np.cross(view, [1.0, 0.0, 0.0] if abs(view[0]) < 0.9 else [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    v = np.cross(view, u)
+    al = np.linspace(0, 2 * np.pi, 4 * N_RIM, endpoint=False)
+    ring = a * (np.outer(np.cos(al), u) + np.outer(np.sin(al), v))
+    kept = ring[ring @ -geo["eta"] <= a - h] + geo["C"]
+    pts = np.vstack([kept, geo["rim"]]) - (np.zeros(3) if off is None else off)
+    pts = pts[:, list(dims)]
+    return pts[ConvexHull(pts).vertices]
+
+
+def animation(ds: xr.Dataset, ball: Ball | None = None, fps: float = FPS, speed: float = SPEED,
+              probe_m: float | None = None):
+    """A matplotlib FuncAnimation of a `simulate` Dataset: top view (x, y) with the path traced
+    and the ball at true scale, side view (x, z) following the ball. In a notebook:
+    ``IPython.display.HTML(animation(ds).to_jshtml())``."""
+    from matplotlib.animation import FuncAnimation
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Polygon
+
+    ball = ball or Ball.paper()
+    probe_m = float(ds.attrs.get("probe_m", 0.0254)) if probe_m is None else probe_m
+    idx = frame_indices(ds, fps, speed)
+    a = ball.a
+    x, y = ds.x.values, ds.y.values
+    fig = Figure(figsize=(10, 5.2), layout="constrained")
+    top, side = fig.subplots(1, 2, width_ratios=[1.3, 1])
+    pad = a + probe_m
+    top.set_xlim(x.min() - pad, x.max() + pad)
+    top.set_ylim(y.min() - pad, y.max() + pad)
+    top.set_aspect("equal")
+    top.set_xlabel("x (m)")
+    top.set_ylabel("y (m)")
+    top.set_title("from above", fontsize=10)
+    side.set_aspect("equal")
+    side.set_xlabel("x - x_G (m)")
+    side.set_ylabel("z (m)")
+    side.set_title("from the side (looking along +y)", fontsize=10)
+    side.set_xlim(-2.2 * a, 2.2 * a)
+    side.set_ylim(-0.1 * a, 2 * a + probe_m + 0.2 * a)
+    side.axhline(0.0, color="0.3", lw=1.5)
+    path_line, = top.plot([], [], color="tab:red", lw=1.2, label="centre of mass")
+    tip_line, = top.plot([], [], color="0.2", lw=0.6, label="probe tip")
+    top.legend(loc="upper right", fontsize=8)
+    art = {}
+    for name, axv, (i, j) in (("top", top, (0, 1)), ("side", side, (0, 2))):
+        art[name] = dict(
+            outline=axv.add_patch(Polygon(np.zeros((3, 2)), closed=True, fc="#f3e6c8", ec="0.3",
+                                          lw=1)),
+            face=axv.add_patch(Polygon(np.zeros((N_RIM, 2)), closed=True, fc="#c8a060",
+                                       ec="0.2", lw=0.8)),
+            probe=axv.plot([], [], color="k", lw=2)[0],
+            spot=axv.plot([], [], "o", color="tab:blue", ms=5)[0],
+            g=axv.plot([], [], "+", color="tab:red", ms=8)[0], dims=(i, j))
+    time_text = top.text(0.02, 0.97, "", transform=top.transAxes, va="top", fontsize=9)
+    views = {"top": np.array([0.0, 0.0, 1.0]), "side": np.array([0.0, -1.0, 0.0])}
+
+    def draw(f):
+        k = idx[f]
+        geo = ball_geometry(ds, k, ball, probe_m)
+        path_line.set_data(x[:k + 1], y[:k + 1])
+        if "x_tip" in ds:
+            tip_line.set_data(ds.x_tip.values[:k + 1], ds.y_tip.values[:k + 1])
+        shift = np.array([geo["G"][0], 0.0, 0.0])
+        for name, parts in art.items():
+            i, j = parts["dims"]
+            off = shift if name == "side" else np.zeros(3)
+
+            def pt(p, i=i, j=j, off=off):
+                q = np.asarray(p) - off
+                return q[..., i], q[..., j]
+
+            parts["outline"].set_xy(silhouette(geo, views[name], (i, j), ball, off))
+            rx, ry = pt(geo["rim"])
+            parts["face"].set_xy(np.column_stack([rx, ry]))
+            facing = float(np.dot(-geo["eta"], views[name])) > 0  # the face turned to us
+            parts["face"].set_alpha(1.0 if facing else 0.25)
+            parts["face"].set_zorder(3 if facing else 1.5)
+            bx, by = pt(geo["face"])
+            tx, ty = pt(geo["tip"])
+            parts["probe"].set_data([bx, tx], [by, ty])
+            parts["probe"].set_zorder(4 if facing else 1.4)
+            sx, sy = pt(geo["spot"])
+            parts["spot"].set_data([sx], [sy])
+            seen = float(np.dot(geo["spot"] - geo["C"], views[name])) > 0
+            parts["spot"].set_alpha(1.0 if seen else 0.2)
+            gx, gy = pt(geo["G"])
+            parts["g"].set_data([gx], [gy])
+        time_text.set_text(f"t = {ds.time.values[k]:.2f} s, theta = "
+                           f"{math.degrees(ds.theta.values[k]):.1f} deg")
+        return []
+
+    lab = ds.attrs.get("label", "")
+    fig.suptitle(f"{lab}: theta0 = {ds.attrs.get('theta0_deg')} deg, chidot0 = "
+                 f"{ds.attrs.get('chidot0')}, phidot0 = {ds.attrs.get('phidot0')} rad/s "
+                 f"({speed:g}x speed)", fontsize=10)
+    return FuncAnimation(fig, draw, frames=len(idx), interval=1000.0 / fps, blit=False)
+
+
+def write_animation(ds: xr.Dataset, out, ball: Ball | None = None, fps: float = FPS,
+                    speed: float = SPEED, probe_m: float | None = None) -> Path:
+    """Write `animation` to out (.gif with Pillow, .mp4 with ffmpeg); returns the path."""
+    from matplotlib.animation import FFMpegWriter, PillowWriter
+
+    p = check_output(out)
+    anim = animation(ds, ball, fps, speed, probe_m)
+    writer = PillowWriter(fps=fps) if p.suffix.lower() == ".gif" else FFMpegWriter(fps=fps)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    anim.save(p, writer=writer, dpi=80)
+    return p
