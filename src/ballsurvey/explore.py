@@ -297,7 +297,7 @@ class View:
     def fixed_text(self) -> str:
         if self.points:
             return ""
-        return ", ".join(axis_value_text(d, float(self.ds[d].values[i]))
+        return ", ".join(axis_value_text(d, float(self.ds[d].values[i]), plain=True)
                          for d, i in self.index.items())
 
     def nearest(self, xv: float, yv: float) -> int:
@@ -418,7 +418,7 @@ def launch_html(info: dict, again: xr.Dataset | None = None, note: str = "",
     """The launch panel: the launch, its label and fields as stored in the map and, when given,
     as integrated again; `note` (a warning) and `timing` below."""
     launch = {**info["launch"], **info["ball"]}
-    head = ", ".join(axis_value_text(k, v) for k, v in launch.items())
+    head = ", ".join(axis_value_text(k, v, plain=True) for k, v in launch.items())
     s = info["stored"]
     a = again.attrs if again is not None else {}
     rows = [("label", "", "label"), ("corner kind", "", "corner_kind")]

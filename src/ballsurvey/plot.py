@@ -41,11 +41,12 @@ CORNER_WORDS = {"rounded": "rounded corners", "cusp": "cusped corners",
                 "loop": "looped corners"}
 
 
-def axis_value_text(axis: str, value: float) -> str:
+def axis_value_text(axis: str, value: float, plain: bool = False) -> str:
     """'$\\dot\\phi_0$ = -3 rad/s', '$\\theta_0$ = 5 deg': the axis's plot symbol, its value and
-    units (matplotlib mathtext, as on the axes)."""
+    units (matplotlib mathtext, as on the axes); plain: the axis's name instead of its symbol
+    ('phidot0 = -3 rad/s'), for text that is not drawn by matplotlib (a web page)."""
     label = AXES[axis].plot_label if axis in AXES else axis
-    symbol = label.split(" (")[0]
+    symbol = axis.removesuffix("_deg") if plain else label.split(" (")[0]
     unit = AXES[axis].text_units if axis in AXES else ""
     return f"{symbol} = {value:g} {unit}".rstrip()
 
