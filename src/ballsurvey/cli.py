@@ -1082,7 +1082,18 @@ def _compiling_line(command: str):
         yield
 
 
+def _quiet_unraisable(info) -> None:
+    """sys.unraisablehook for the command line: a Ctrl-C that lands inside a callback Python
+    cannot raise from (a garbage-collection callback of distributed's, a finaliser) is dropped
+    without its 'Exception ignored in ...' traceback: the run's own Ctrl-C handling says what
+    happened, in one line. Anything else is reported as usual."""
+    if issubclass(info.exc_type, KeyboardInterrupt):
+        return
+    sys.__unraisablehook__(info)
+
+
 def main(argv=None) -> int:
+    sys.unraisablehook = _quiet_unraisable
     try:
         args = build_parser().parse_args(argv)
     except SystemExit as exc:  # --help, --version (0) or an option argparse refused (2)
