@@ -73,7 +73,7 @@ def test_forces_and_torque_of_the_steady_circle_match_eqs_36_to_40(ball, fig4):
     # friction points from G to the circle's centre (the origin)
     assert np.allclose((ds.Fx * ds.x + ds.Fy * ds.y) / (f_h * np.hypot(ds.x, ds.y)), -1,
                        atol=1e-6)
-    assert np.allclose(ds.N, M * g, rtol=1e-9) and np.allclose(ds.Fz, 0, atol=1e-9)
+    assert np.allclose(ds.normal_force, M * g, rtol=1e-9) and np.allclose(ds.Fz, 0, atol=1e-9)
     # Eq. (40) with m = M, written out here
     tau_c = M * math.cos(th) * (-g * c + (a - c * math.sin(th)) * (a * om - c * Om) * Om)
     assert np.allclose(np.hypot(ds.tau_x, ds.tau_y), abs(tau_c), rtol=1e-6)

@@ -91,22 +91,6 @@ def check_simulate_inputs(theta0_deg, thetadot0, chidot0, phidot0, T, dt, chi0_d
     limits.tolerances(rtol, atol)
 
 
-def _contact_along(s, p) -> tuple[np.ndarray, np.ndarray]:
-    """Friction ratio |F_h|/N (inf where N <= 0) and normal force N / (M g) at each sample of a
-    trajectory (rows of the fast state), from the contact force of Eqs. (16)-(20)."""
-    from .physics.euler import contact
-
-    n = s.shape[0]
-    fric, normal = np.empty(n), np.empty(n)
-    for k in range(n):
-        r = s[k]
-        u = np.array([r[S_X], r[S_Y], r[S_TH], r[S_CHI], r[S_PHI], r[S_THD], r[S_CHD], r[S_PHD]])
-        fx, fy, nn = contact(u, p)[:3]
-        fric[k] = math.hypot(fx, fy) / nn if nn > 0 else math.inf
-        normal[k] = nn
-    return fric, normal
-
-
 def _sample_times(t: np.ndarray, T: float, n: int) -> np.ndarray:
     """The sample times: k T / (n - 1) computed so (0.005, not 0.004999999999999999) where the
     samples are evenly spaced over T, as the fixed-step and dense-output samples are; `t` as it
@@ -173,7 +157,7 @@ def simulate(theta0_deg: float, thetadot0: float, chidot0: float, phidot0: float
         (J); friction_ratio (|F_h|/N: the launch slips where it exceeds mu) and normal_force
         (N, lifts off where <= 0); the body points (m) of `body_points`: x_face .. z_face, the
         probe's x_base .. z_base and x_tip .. z_tip, x_contact, y_contact; the net force Fx,
-        Fy, Fz and the normal force N (N) and the torque about G tau_x, tau_y, tau_z (N m) of
+        Fy, Fz (= N - M g) (N) and the torque about G tau_x, tau_y, tau_z (N m) of
         `contact_forces`. Its attrs hold the label, the classifier's fields in SI
         (as in a map), the launch, the method and step used, and the ball (`ball_a`, ...).
 
@@ -206,7 +190,10 @@ def simulate(theta0_deg: float, thetadot0: float, chidot0: float, phidot0: float
     formulation = FORMULATIONS[int(res.formulation[0])]
     dt_used = plan.dt_nd * tu if fixed else math.nan
     e = np.array([energy(r[S_STH], r[S_CTH], r[S_THD], r[S_CHD], r[S_PHD], *p) for r in s])
-    fric, normal = _contact_along(s, p)
+    forces = contact_forces(s, ball)  # Fx, Fy, Fz, N (N), tau_x, tau_y, tau_z (N m)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        fric = np.where(forces[:, 3] > 0.0, np.hypot(forces[:, 0], forces[:, 1]) / forces[:, 3],
+                        np.inf)
     f = fields_to_si(classify(res, ball.flat_face_theta_rad, th), a, tu, ball.M)
 
     def var(values, units, long_name):
@@ -228,8 +215,8 @@ def simulate(theta0_deg: float, thetadot0: float, chidot0: float, phidot0: float
             "energy": var(e * ball.M * ball.g * a, "J",
                           "kinetic plus potential energy, Eqs. (11)-(12)"),
             "friction_ratio": var(fric, "1", "friction demand |F_h|/N (slips where above mu)"),
-            "normal_force": var(normal * ball.M * ball.g, "N",
-                                "normal force of the table N (lifts off where <= 0)"),
+            "normal_force": var(forces[:, 3], "N",
+                                "normal force of the table N, Eq. (20) (lifts off where <= 0)"),
         },
         coords={"time": ("time", _sample_times(t_nd * tu, T, n_out),
                          {"units": "s", "long_name": "time", "standard_name": "time"})},
@@ -239,15 +226,14 @@ def simulate(theta0_deg: float, thetadot0: float, chidot0: float, phidot0: float
              "tip": "the probe's tip", "contact": "the contact point"}
     for k, v in pts.items():
         ds[k] = var(v, "m", f"{k[0]} of {where[k.split('_')[1]]}")
-    forces = contact_forces(s, ball)
-    for j, (k, units, long_name) in enumerate((
-            ("Fx", "N", "net force along x (friction), Eqs. (16)-(19)"),
-            ("Fy", "N", "net force along y (friction), Eqs. (16)-(19)"),
-            ("Fz", "N", "net vertical force N - M g, Eq. (20)"),
-            ("N", "N", "normal force of the table, Eq. (20)"),
-            ("tau_x", "N m", "torque about G along x, Eqs. (21)-(24)"),
-            ("tau_y", "N m", "torque about G along y, Eqs. (21)-(24)"),
-            ("tau_z", "N m", "torque about G along z, Eqs. (21)-(24)"))):
+    # contact_forces' columns; its fourth, the normal force N, is the variable normal_force
+    for k, (j, units, long_name) in {
+            "Fx": (0, "N", "net force along x (friction), Eqs. (16)-(19)"),
+            "Fy": (1, "N", "net force along y (friction), Eqs. (16)-(19)"),
+            "Fz": (2, "N", "net vertical force N - M g, Eq. (20)"),
+            "tau_x": (4, "N m", "torque about G along x, Eqs. (21)-(24)"),
+            "tau_y": (5, "N m", "torque about G along y, Eqs. (21)-(24)"),
+            "tau_z": (6, "N m", "torque about G along z, Eqs. (21)-(24)")}.items():
         ds[k] = var(forces[:, j], units, long_name)
     label = LABELS[int(f.pop("label")[0])]
     kind = CORNER_KINDS[int(f.pop("corner_kind")[0])]
