@@ -63,7 +63,7 @@ SLOTS = (
     "n_min", "xm_last", "ym_last", "cyc_side",
     "thd0", "thdd0",
     "p_sth", "p_cth", "p_chd", "p_u", "p_w", "p_psid", "psi_last",
-    "acc_nsamp", "cyc_nsamp", "hd_sum", "hd_n", "p_sdd", "th_step_max", "p_th",
+    "acc_nsamp", "cyc_nsamp", "hd_sum", "hd_n", "p_phd", "th_step_max", "p_th",
 )
 N_OBS = len(SLOTS)
 (O_TH_MIN, O_TH_MAX, O_E0, O_J0, O_R0, O_DE, O_DJ, O_DR, O_FRIC, O_NMIN,
@@ -76,7 +76,7 @@ N_OBS = len(SLOTS)
  O_NMIN_EV, O_XM, O_YM, O_C_SIDE,
  O_THD0, O_THDD0,
  O_P_STH, O_P_CTH, O_P_CHD, O_P_U, O_P_W, O_P_PSID, O_PSIL,
- O_A_NSAMP, O_C_NSAMP, O_HD_SUM, O_HD_N, O_P_SDD, O_TH_STEP, O_P_TH) = range(N_OBS)
+ O_A_NSAMP, O_C_NSAMP, O_HD_SUM, O_HD_N, O_P_PHD, O_TH_STEP, O_P_TH) = range(N_OBS)
 
 jit = njit(cache=True, nogil=True, error_model="numpy")  # stamped cache: _jit.py
 
@@ -112,13 +112,14 @@ HEADING_SPEED_MIN = 1e-3
 
 
 @jit
-def _locate(obs, i, t, x, y, sth, cth, chi, thd, chd, u, w, psid, sdd):
+def _locate(obs, i, t, x, y, sth, cth, chi, thd, chd, phd, u, w, psid, c, A, B):
     """A theta extremum between the previous sample and this one, located on the cubic Hermite
     interpolants of the sample pair, chart-free (valid through the vertical).
 
     The extremum is the root of the rate of sin(theta), cos(theta) thetadot (the vertical
     component of the symmetry axis's rate: smooth where the Euler chart is not), interpolated
-    with its own rate sdd; there theta is read from sin(theta), interpolated with its rate, and
+    with its own rate (from theta's acceleration at the two samples, computed here: events are
+    rare, samples are many); there theta is read from sin(theta), interpolated with its rate, and
     the length of the axis's horizontal part q = cos(theta) (cos chi, sin chi), itself
     interpolated with its rate.
     Returns (tau, t, theta, chi, x, y, psi, speed) at the extremum: chi on the branch of the
@@ -134,7 +135,12 @@ def _locate(obs, i, t, x, y, sth, cth, chi, thd, chd, u, w, psid, sdd):
     # the rate changes sign over [0, 1] (thetadot did): bisect its interpolant
     lo, hi = 0.0, 1.0
     g_lo = m0
-    n0, n1 = obs[O_P_SDD, i] * h * h, sdd * h * h
+    thd0, chd0 = obs[O_P_THD, i], obs[O_P_CHD, i]
+    # the second derivative of sin(theta) at both samples
+    thdd0 = accelerations(s0, c0, thd0, chd0, obs[O_P_PHD, i], c, A, B)[0]
+    thdd1 = accelerations(s1, cth, thd, chd, phd, c, A, B)[0]
+    n0 = (c0 * thdd0 - s0 * thd0 * thd0) * h * h
+    n1 = (cth * thdd1 - sth * thd * thd) * h * h
     for _ in range(LOCATE_ITERATIONS):
         mid = 0.5 * (lo + hi)
         g = _hermite(mid, m0, m1, n0, n1)
@@ -146,7 +152,6 @@ def _locate(obs, i, t, x, y, sth, cth, chi, thd, chd, u, w, psid, sdd):
     s_ev = _hermite(tau, s0, s1, m0, m1)
     chi0 = obs[O_P_CHI, i]
     cc0, sc0, cc1, sc1 = math.cos(chi0), math.sin(chi0), math.cos(chi), math.sin(chi)
-    thd0, chd0 = obs[O_P_THD, i], obs[O_P_CHD, i]
     qx = _hermite(tau, c0 * cc0, cth * cc1, (-s0 * thd0 * cc0 - c0 * chd0 * sc0) * h,
                   (-sth * thd * cc1 - cth * chd * sc1) * h)
     qy = _hermite(tau, c0 * sc0, cth * sc1, (-s0 * thd0 * sc0 + c0 * chd0 * cc0) * h,
@@ -186,7 +191,6 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
         normal = normal_force(sth, cth, thd, thdd, c)  # N / (M g), Eq. (20)
         fric = (math.sqrt(ah_par * ah_par + ah_perp * ah_perp) / normal if normal > 0.0
                 else math.inf)
-    sdd = cth * thdd - sth * thd * thd  # the second derivative of sin(theta)
     # --- invariants -----------------------------------------------------------------------------
     e = energy(sth, cth, thd, chd, phd, c, A, B)
     jel = jellett(sth, cth, thd, chd, phd, c, A, B)
@@ -259,8 +263,8 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
         obs[O_A_NSAMP, i] += 1.0
         obs[O_TH_STEP, i] = max(obs[O_TH_STEP, i], abs(th - obs[O_P_TH, i]))
         if obs[O_P_THD, i] < 0.0 and thd >= 0.0:
-            _, _, th_ev, _, xm, ym, _, _ = _locate(obs, i, t, x, y, sth, cth, chi, thd, chd, u,
-                                                   w, psid, sdd)
+            _, _, th_ev, _, xm, ym, _, _ = _locate(obs, i, t, x, y, sth, cth, chi, thd, chd,
+                                                   phd, u, w, psid, c, A, B)
             obs[O_TH_MIN, i] = min(obs[O_TH_MIN, i], th_ev)
             if obs[O_NMIN_EV, i] >= 1.0:
                 obs[O_C_SIDE, i] = math.hypot(xm - obs[O_XM, i], ym - obs[O_YM, i])
@@ -270,7 +274,7 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
         pthd = obs[O_P_THD, i]
         if pthd > 0.0 and thd <= 0.0:
             _, t_ev, th_ev, chi_ev, x_ev, y_ev, psi_ev, speed_ev = _locate(
-                obs, i, t, x, y, sth, cth, chi, thd, chd, u, w, psid, sdd)
+                obs, i, t, x, y, sth, cth, chi, thd, chd, phd, u, w, psid, c, A, B)
             obs[O_TH_MAX, i] = max(obs[O_TH_MAX, i], th_ev)
             if speed_ev > HEADING_SPEED_MIN:
                 if obs[O_NMAX, i] >= 1.0 and math.isfinite(obs[O_PSIL, i]):
@@ -345,7 +349,7 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
     obs[O_P_U, i] = u
     obs[O_P_W, i] = w
     obs[O_P_PSID, i] = psid
-    obs[O_P_SDD, i] = sdd
+    obs[O_P_PHD, i] = phd
     obs[O_P_TH, i] = th
 
 

@@ -349,13 +349,10 @@ def run_group(u0, params, T, rtol, atol, h0, max_steps, ds, lo, hi, lanes, stop_
                         vv, echi[i] + dq * echd[i])
                     if seen and cth > VIEW_MIN_COS:
                         psid, fric, normal = path_kinematics(vv, dv, pc[i])
-                        # psid, fric and normal come from the fixed frame; theta's acceleration
-                        # (for locating theta's extrema) from the Euler view's state, not from
-                        # the interpolant, whose rates lag its values by its own error
-                        thdd, chdd, phdd = accelerations(sth, cth, thd, chd, phd, pc[i], pa[i],
-                                                         pb[i])
+                        # psid, fric and normal come from the fixed frame: the observer does
+                        # not read the Euler accelerations then
                         record(obs_l, i, False, ts, dq, vv[0], vv[1], th, sth, cth, ch, thd, chd,
-                               phd, thdd, chdd, phdd, pc[i], pa[i], pb[i], psid, fric, normal)
+                               phd, 0.0, 0.0, 0.0, pc[i], pa[i], pb[i], psid, fric, normal)
                         echi[i] = ch
                         echd[i] = chd
                         tseen[i] = ts
@@ -400,7 +397,6 @@ def run_serial(u0, params, T, rtol, atol, h0, max_steps, ds, lanes, groups, stop
 _OBSERVED_HEADER = """
 from ballsurvey.integrate.outcome import NONFINITE, STEP_BUDGET, STEP_UNDERFLOW
 from ballsurvey.physics.fast import N_FAST, S_CHD, S_CHI, fast_rhs_into, fixed_from_fast_into
-from ballsurvey.physics.euler import accelerations
 from ballsurvey.physics.fixed import euler_view_scalars, path_kinematics
 
 NV = {nv!r}
