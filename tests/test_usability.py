@@ -69,6 +69,21 @@ def test_one_axis_given_takes_the_first_free_one_for_the_other():
     assert "chi" in fig.axes[0].get_xlabel() and "theta" in fig.axes[0].get_ylabel()
 
 
+def test_exact_triangle_is_dashed_and_square_solid_on_the_map_and_in_its_legend():
+    ds = _grid(6, 7)
+    n = np.linspace(2.5, 4.5, 7)[None, None, :, None] + np.zeros((6, 1, 7, 1))
+    ds["n_sides"] = (ds.label.dims, n)
+    ds["label"] = (ds.label.dims, np.where(n < 3.5, CODE["triangle"], CODE["square"]).astype(
+        np.int8))
+    fig = map_figure(ds)
+    cs = [c for c in fig.axes[0].collections if hasattr(c, "levels")][0]
+    dashed = {float(lv): ls[1] is not None for lv, ls in zip(cs.levels, cs.get_linestyles())}
+    assert dashed == {3.0: True, 4.0: False}
+    legend = {h.get_label(): h.get_linestyle() for h in fig.legends[0].legend_handles
+              if h.get_label().startswith("exact")}
+    assert legend == {"exact triangle (n=3)": "--", "exact square (n=4)": "-"}
+
+
 def test_map_title_names_the_ball_and_the_fixed_values(small_map):
     ds = ballsurvey.open_map(small_map)
     title = map_figure(ds, at={"phidot0": -2.5})._suptitle.get_text()

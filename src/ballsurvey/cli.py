@@ -886,8 +886,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = cmd("plot", help="draw a regime map (PNG, PDF or SVG) from a sweep's netCDF file")
     p.add_argument("result", help="a ballsurvey netCDF map (.nc, written by sweep)")
-    p.add_argument("--x", metavar="AXIS", help="axis drawn across (default: the second longest)")
-    p.add_argument("--y", metavar="AXIS", help="axis drawn up (default: the longest)")
+    p.add_argument("--x", metavar="AXIS",
+                   help="axis drawn across (default: the map's first axis with more than one "
+                        "value, in its order theta0_deg, thetadot0, chidot0, phidot0, ...)")
+    p.add_argument("--y", metavar="AXIS",
+                   help="axis drawn up (default: the next axis with more than one value)")
     p.add_argument("--at", action="append", metavar="AXIS=VALUE",
                    help="fix another axis at one of its values (within half a grid step; "
                         "repeatable), in the axis's units (deg or rad/s)")
@@ -930,8 +933,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="port of the local app (served on 127.0.0.1 only)")
     e.add_argument("--no-browser", action="store_true",
                    help="print the address instead of opening a browser")
-    e.add_argument("--x", metavar="AXIS", help="axis drawn across (default: the second longest)")
-    e.add_argument("--y", metavar="AXIS", help="axis drawn up (default: the longest)")
+    e.add_argument("--x", metavar="AXIS",
+                   help="axis drawn across (default: the map's first axis with more than one "
+                        "value, in its order theta0_deg, thetadot0, chidot0, phidot0, ...)")
+    e.add_argument("--y", metavar="AXIS",
+                   help="axis drawn up (default: the next axis with more than one value)")
     e.add_argument("--at", action="append", metavar="AXIS=VALUE",
                    help="start another axis at one of its values (repeatable), in its units "
                         "(deg or rad/s); default: its first value")

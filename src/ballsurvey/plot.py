@@ -147,8 +147,27 @@ def default_axes(ds: xr.Dataset, exclude=(), need: int = 2) -> tuple[str, ...]:
     return tuple(dims[:need])
 
 
+def drawn_axes(ds: xr.Dataset, x: str | None = None, y: str | None = None,
+               at: dict | None = None, facet: str | None = None) -> tuple[str, str]:
+    """The axes a map is drawn over, across and up: `x` and `y` where given, the others from
+    `default_axes` (the map's first axes with more than one value, in its own order, leaving
+    out `facet` and, where enough are left, the axes `at` fixes). Used by `plot` and
+    `explore`, so both draw a map the same way round."""
+    if x is not None and y is not None:
+        return x, y
+    taken = ({facet} if facet else set()) | {a for a in (x, y) if a}
+    need = (x is None) + (y is None)
+    try:  # the axes --at fixes are not drawn, where others are left to draw
+        free = default_axes(ds, exclude=taken | set(at or {}), need=need)
+    except InputError:  # too few left: the caller says which axis --at fixes that is drawn
+        free = default_axes(ds, exclude=taken, need=need)
+    return (x, free[0]) if x else (free[0], y or free[1])
+
+
 #: n_sides of the exact-polygon curves drawn over a map: the exact triangle and square
 EXACT_POLYGON_LEVELS = (3.0, 4.0)
+#: how each curve is drawn, by `plot` and `explore` alike: the triangle dashed, the square solid
+EXACT_POLYGON_DASH = {3.0: "dashed", 4.0: "solid"}
 
 
 def exact_polygon_field(panel: xr.Dataset, x: str, y: str) -> np.ndarray | None:
@@ -206,14 +225,7 @@ def map_figure(ds: xr.Dataset, x: str | None = None, y: str | None = None,
     if facet is not None and facet in (x, y):
         raise InputError(f"--facet {facet} is also the axis drawn "
                          f"{'across (--x)' if facet == x else 'up (--y)'}: facet by another axis")
-    if x is None or y is None:  # the map's first free axes, whatever the grid sizes
-        taken = ({facet} if facet else set()) | {a for a in (x, y) if a}
-        need = (x is None) + (y is None)
-        try:  # the axes --at fixes are not drawn, where others are left to draw
-            free = default_axes(ds, exclude=taken | set(at or {}), need=need)
-        except InputError:  # too few left: _select says which axis --at fixes that is drawn
-            free = default_axes(ds, exclude=taken, need=need)
-        x, y = (x, y) if x and y else ((x, free[0]) if x else (free[0], y or free[1]))
+    x, y = drawn_axes(ds, x, y, at, facet)
     if x == y:
         raise InputError(f"--x and --y are the same axis ({x})")
     for a in (x, y) + ((facet,) if facet else ()):
@@ -238,7 +250,8 @@ def map_figure(ds: xr.Dataset, x: str | None = None, y: str | None = None,
         ns = exact_polygon_field(panel, x, y) if contours else None
         if ns is not None:
             cs = ax.contour(xs, ys, ns, levels=list(EXACT_POLYGON_LEVELS), colors="k",
-                            linewidths=1.0)
+                            linewidths=1.0,
+                            linestyles=[EXACT_POLYGON_DASH[lv] for lv in EXACT_POLYGON_LEVELS])
             ax.clabel(cs, fmt={3.0: "n=3", 4.0: "n=4"}, fontsize=8)
             drew_contours = True
         ax.set_xlabel(AXIS_TEXT.get(x, x))
@@ -260,8 +273,8 @@ def map_figure(ds: xr.Dataset, x: str | None = None, y: str | None = None,
     if drew_contours:
         from matplotlib.lines import Line2D
 
-        handles.append(Line2D([], [], color="k", lw=1.0,
-                              label="exact triangle (n=3)\nand square (n=4)"))
+        handles += [Line2D([], [], color="k", lw=1.0, ls=EXACT_POLYGON_DASH[lv], label=text)
+                    for lv, text in ((3.0, "exact triangle (n=3)"), (4.0, "exact square (n=4)"))]
     fig.legend(handles=handles, loc="outside right center", title="path shape", fontsize=9)
     return fig
 
