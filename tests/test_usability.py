@@ -21,6 +21,7 @@ from ballsurvey.plot import (
     orbit_window,
     path_figure,
     shape_text,
+    spin_about_axis,
 )
 
 
@@ -82,6 +83,26 @@ def test_exact_triangle_is_dashed_and_square_solid_on_the_map_and_in_its_legend(
     legend = {h.get_label(): h.get_linestyle() for h in fig.legends[0].legend_handles
               if h.get_label().startswith("exact")}
     assert legend == {"exact triangle (n=3)": "--", "exact square (n=4)": "-"}
+
+
+def test_spin_about_the_axis_is_the_fixed_frame_spin_and_stays_bounded(square):
+    """omega_eta = phidot - chidot sin(theta) against w . e of the fixed-frame state, and, for
+    the paper's square, bounded where the Euler rates spike (theta near 90 deg)."""
+    from ballsurvey.physics.euler import CHD, CHI, N_EULER, PHD, PHI, TH, THD, X, Y
+    from ballsurvey.physics.fixed import EX, EZ, WX, WZ, euler_to_fixed
+
+    spin = spin_about_axis(square.theta.values, square.chidot.values, square.phidot.values)
+    for i in range(0, square.sizes["time"], 97):
+        u = np.empty(N_EULER)
+        for k, name in ((X, "x"), (Y, "y"), (TH, "theta"), (CHI, "chi"), (PHI, "phi"),
+                        (THD, "thetadot"), (CHD, "chidot"), (PHD, "phidot")):
+            u[k] = float(square[name][i])
+        v = euler_to_fixed(u)
+        assert float(np.dot(v[WX:WZ + 1], v[EX:EZ + 1])) == pytest.approx(spin[i], abs=1e-9)
+    assert np.abs(square.phidot.values).max() > 50 and np.abs(square.chidot.values).max() > 50
+    assert -3.0 < spin.min() and spin.max() < -2.5  # launched at -3 - 4.05 sin(-5 deg) = -2.65
+    rates = [ax for ax in path_figure(square).axes if ax.get_yscale() == "symlog"][0]
+    assert any("spin about the axis" in t.get_text() for t in rates.get_legend().get_texts())
 
 
 def test_map_title_names_the_ball_and_the_fixed_values(small_map):

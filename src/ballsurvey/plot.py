@@ -31,7 +31,7 @@ LABEL_COLOURS = {
 }
 #: line colours of the path figure's panels (Okabe and Ito's colour-blind-safe set)
 LINE_COLOURS = {"chidot": "#0072b2", "phidot": "#e69f00", "friction": "#d55e00",
-                "normal": "#009e73", "corner": "#cc3311"}
+                "normal": "#009e73", "corner": "#cc3311", "spin": "#000000"}
 AXIS_TEXT = {k: ax.plot_label for k, ax in AXES.items()}
 #: figures are written in these formats, chosen by the output file's suffix
 FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
@@ -345,10 +345,19 @@ def envelope(t: np.ndarray, v: np.ndarray, bins: int = 2000) -> tuple[np.ndarray
     return np.asarray(ti), np.asarray(vi)
 
 
+def spin_about_axis(theta, chidot, phidot):
+    """The ball's spin about its symmetry axis, omega_eta = phidot - chidot sin(theta) (rad/s;
+    theta in rad): the component of the angular velocity along the axis. Unlike chidot and
+    phidot, which both grow without bound as the axis nears the vertical (theta -> +-90 deg,
+    where the Euler angles are singular), it stays bounded: it is the physical spin."""
+    return np.asarray(phidot) - np.asarray(chidot) * np.sin(np.asarray(theta))
+
+
 def _dense_rates(ds: xr.Dataset, ball: Ball, max_samples: int = 1_000_001):
-    """Time and the rates chidot, phidot at every integration step of the launch `ds` was made
-    from (spin spikes near theta = 90 deg last a few ms: a coarse trajectory misses their tops);
-    `ds` itself when it cannot be integrated again (no launch in its attributes) or is dense."""
+    """Time, the rates chidot, phidot and theta (rad) at every integration step of the launch
+    `ds` was made from (the rate spikes near theta = 90 deg last a few ms: a coarse trajectory
+    misses their tops); `ds` itself when it cannot be integrated again (no launch in its
+    attributes) or is dense."""
     a = ds.attrs
     keys = ("theta0_deg", "thetadot0", "chidot0", "phidot0")
     t = ds.time.values
@@ -363,10 +372,11 @@ def _dense_rates(ds: xr.Dataset, ball: Ball, max_samples: int = 1_000_001):
             dense = simulate(*(float(a[k]) for k in keys), T=T, dt=dt,
                              chi0_deg=float(a.get("chi0_deg", 0.0)), ball=ball, n_out=n_out,
                              method=str(a.get("method", "rk4")))
-            return dense.time.values + t[0], dense.chidot.values, dense.phidot.values
+            return (dense.time.values + t[0], dense.chidot.values, dense.phidot.values,
+                    dense.theta.values)
         except (InputError, ValueError):
             pass
-    return t, ds.chidot.values, ds.phidot.values
+    return t, ds.chidot.values, ds.phidot.values, ds.theta.values
 
 
 def plot_path(ds: xr.Dataset, out=None, ball: Ball | None = None, title: str | None = None,
@@ -376,8 +386,10 @@ def plot_path(ds: xr.Dataset, out=None, ball: Ball | None = None, title: str | N
     Left: the path of the centre of mass coloured by theta, its corners (theta minima) and its
     start marked, the shape in the title. Right: theta(t); chidot and phidot(t) at every
     integration step on a symmetric-log scale (linear within +-10 rad/s, so the ordinary motion
-    and the spin spikes near theta = 90 deg both show); friction ratio |F_h|/N and normal force
-    N(t). Written as PNG, PDF or SVG by the suffix of `out`.
+    and their spikes near theta = 90 deg both show), and the spin about the symmetry axis
+    `spin_about_axis` (the spikes of chidot and phidot come from the Euler angles, singular at
+    theta = +-90 deg, not from the ball, whose spin about its axis stays bounded); friction
+    ratio |F_h|/N and normal force N(t). Written as PNG, PDF or SVG by the suffix of `out`.
 
     Parameters
     ----------
@@ -460,11 +472,14 @@ def path_figure(ds: xr.Dataset, ball: Ball | None = None, title: str | None = No
         ax1.plot(t[ci], th[ci], "o", ms=4, mfc="none", mec=LINE_COLOURS["corner"])
     ax1.set_ylabel(r"$\theta$ (deg)")
     ax2 = fig.add_subplot(gs[1, 1], sharex=ax1)
-    td, chid, phid = _dense_rates(ds, ball)
+    td, chid, phid, thd = _dense_rates(ds, ball)
     ax2.plot(*envelope(td, phid), color=LINE_COLOURS["phidot"], lw=1.0, label=r"$\dot\phi$",
              zorder=2)
     ax2.plot(*envelope(td, chid), color=LINE_COLOURS["chidot"], lw=1.0, ls=(0, (4, 1.5)),
              label=r"$\dot\chi$", zorder=3)
+    ax2.plot(*envelope(td, spin_about_axis(thd, chid, phid)), color=LINE_COLOURS["spin"], lw=1.2,
+             label="spin about the axis\n" + r"$\omega_\eta = \dot\phi - \dot\chi\sin\theta$",
+             zorder=4)
     ax2.set_yscale("symlog", linthresh=10.0, linscale=1.0)
     ax2.axhline(0.0, color="0.6", lw=0.5, zorder=1)
     ax2.set_ylabel("rate (rad/s)\nlinear to $\\pm$10, then log", fontsize=9)
