@@ -807,6 +807,7 @@ def build_parser() -> argparse.ArgumentParser:
                                              "error, 130 interrupted.")
     ap.add_argument("--version", action="version", version=f"ballsurvey {_version()}")
     sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    ap.commands = sub.choices  # each command's own parser, by name
 
     def cmd(name, **kw):
         return sub.add_parser(name, formatter_class=_Help, **kw)
@@ -1090,7 +1091,10 @@ def _compiling_line(command: str):
 
 def main(argv=None) -> int:
     try:
-        args = build_parser().parse_args(argv)
+        parser = build_parser()
+        args, extra = parser.parse_known_args(argv)
+        if extra:  # said by the command's own parser, so the line names the command
+            parser.commands[args.command].error(f"unrecognized arguments: {' '.join(extra)}")
     except SystemExit as exc:  # --help, --version (0) or an option argparse refused (2)
         return exc.code
     from .limits import RunError
