@@ -193,6 +193,26 @@ def test_path_rates_show_spikes_and_ordinary_motion(square):
     assert rates.get_yaxis().get_transform().linthresh == pytest.approx(10.0)
 
 
+def test_path_line_says_what_was_drawn_and_no_turn_where_there_is_none(tmp_path, capsys):
+    def said(*launch):
+        assert cli.main(["path", *launch, "--panels", "path", "-o", str(tmp_path / "p.png")]) == 0
+        return capsys.readouterr().out
+
+    # Fig. 7 turns -2.9 deg a cycle: 36 cycles are a quarter of an orbit, not three orbits
+    line = said("--theta0-deg", "-5", "--chidot0", "23", "--phidot0", "-3", "--chi0-deg", "190")
+    turn = float(line.split("turn per cycle ")[1].split(" deg")[0])
+    cycles = float(line.split(" s (")[1].split(" theta cycles")[0])
+    orbits = float(line.split("theta cycles, ")[1].split(" of an orbit")[0])
+    assert cycles == 36 and orbits == pytest.approx(cycles * abs(turn) / 360.0, abs=0.005)
+    assert "three orbits" not in line
+    # a steady circle (theta stays at 24 deg) has no theta cycle to turn per
+    line = said("--theta0-deg", "24", "--chidot0", "-3.23", "--phidot0", "-10.2126")
+    assert "steady" in line and "turn per cycle -" not in line and "theta 24.00..24.00" in line
+    # a run too short for one cycle: said in words, not as nan
+    line = said("--theta0-deg", "-5", "--chidot0", "4.05", "--phidot0", "-3", "--T", "0.1")
+    assert "nan" not in line and "no turn per cycle (too few theta cycles in 0.1 s)" in line
+
+
 def test_path_command_prints_the_star_with_its_p_q(tmp_path, capsys):
     out = tmp_path / "star.pdf"
     assert cli.main(["path", "--theta0-deg", "-8", "--chidot0", "-2", "--phidot0", "0", "--T",

@@ -8,6 +8,7 @@ other exception is a bug and shows its traceback.
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from contextlib import contextmanager
 
@@ -432,7 +433,15 @@ def _cmd_explore(args):
 
 def _cmd_path(args):
     from . import limits
-    from .plot import BODY_POINTS, orbit_window, plot_forces, plot_path, shape_text
+    from .plot import (
+        BODY_POINTS,
+        cycles_per_orbit,
+        is_steady,
+        orbit_window,
+        plot_forces,
+        plot_path,
+        shape_text,
+    )
     from .simulate import check_simulate_inputs, simulate
 
     out = _figure_file(args.output)
@@ -461,8 +470,12 @@ def _cmd_path(args):
         if window < T:
             drawn = ds.sel(time=slice(0.0, window))
             drawn.attrs = ds.attrs
-            shown = (f"; drew the first {window:.3g} s (three orbits, at most 36 theta cycles; "
-                     "--T to choose)")
+            cycles = window / float(ds.attrs["theta_period_s"])
+            orbits = cycles / cycles_per_orbit(ds.attrs)
+            orbits = (f"{orbits:.3g} orbits" if orbits >= 1.005 else
+                      "one orbit" if orbits > 0.995 else f"{orbits:.2g} of an orbit")
+            shown = (f"; drew the first {window:.3g} s ({cycles:.3g} theta cycles, {orbits}; "
+                     "at most 3 orbits or 36 cycles without --T)")
     out.parent.mkdir(parents=True, exist_ok=True)
     plot_path(drawn, out, ball=ball, panels=args.panels, dpi=dpi, show=show)
     if args.forces:
@@ -470,9 +483,14 @@ def _cmd_path(args):
         plot_forces(drawn, f_out, title=f"net force and torque about G: {ds.attrs['label']}")
         out = f"{out} and {f_out}"
     a = ds.attrs
-    print(f"{shape_text(a)}; turn per cycle {a['turn_per_cycle_deg']:.3f} deg, theta "
-          f"{a['theta_min_deg']:.2f}..{a['theta_max_deg']:.2f} deg (label from {T:g} s)"
-          f"{shown}; wrote {out}")
+    if is_steady(a):
+        turn = "steady (theta constant: no theta cycle, no turn per cycle)"
+    elif math.isfinite(float(a["turn_per_cycle_deg"])):
+        turn = f"turn per cycle {a['turn_per_cycle_deg']:.3f} deg"
+    else:
+        turn = f"no turn per cycle (too few theta cycles in {T:g} s)"
+    print(f"{shape_text(a)}; {turn}, theta {a['theta_min_deg']:.2f}..{a['theta_max_deg']:.2f} "
+          f"deg (label from {T:g} s){shown}; wrote {out}")
 
 
 def _ball_arg(args):

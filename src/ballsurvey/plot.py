@@ -313,18 +313,34 @@ def corner_indices(ds: xr.Dataset, heading_rate: np.ndarray | None = None) -> np
     return np.concatenate([[0], mins]).astype(int) if starts_low else mins.astype(int)
 
 
+def cycles_per_orbit(attrs: dict) -> float:
+    """Theta cycles in one orbit (360 deg of net turn): p for a star {p/q}, 360/|turn per
+    cycle| otherwise; NaN without a turn."""
+    turn = attrs.get("turn_per_cycle_deg")
+    if attrs.get("label") == "star" and _finite(attrs.get("star_points")):
+        return float(attrs["star_points"])
+    return 360.0 / abs(float(turn)) if _finite(turn) and float(turn) != 0 else math.nan
+
+
+def is_steady(attrs: dict) -> bool:
+    """A circle whose theta stays within the classifier's steady tolerance
+    (`Thresholds.steady_theta_tol_deg`, 0.5 deg): it has no theta cycle to speak of, so no turn
+    per cycle either."""
+    from .classify.labels import Thresholds
+
+    lo, hi = attrs.get("theta_min_deg"), attrs.get("theta_max_deg")
+    return (attrs.get("label") == "circle" and _finite(lo) and _finite(hi)
+            and float(hi) - float(lo) < Thresholds().steady_theta_tol_deg)
+
+
 def orbit_window(attrs: dict, T: float, orbits: float = 3.0, max_cycles: int = 36) -> float:
     """A duration (s) that shows `orbits` orbits of a launch, an orbit being 360 deg of net turn:
     p theta cycles for a star {p/q}, 360/|turn per cycle| cycles otherwise; at most `max_cycles`
     cycles (a near-straight path turns little) and at most T. T when the launch has no theta
     period or no turn (a steady circle)."""
-    period, turn = attrs.get("theta_period_s"), attrs.get("turn_per_cycle_deg")
-    if not (_finite(period) and float(period) > 0 and _finite(turn) and float(turn) != 0):
+    period, per_orbit = attrs.get("theta_period_s"), cycles_per_orbit(attrs)
+    if not (_finite(period) and float(period) > 0 and _finite(per_orbit)) or is_steady(attrs):
         return T
-    if attrs.get("label") == "star" and _finite(attrs.get("star_points")):
-        per_orbit = float(attrs["star_points"])
-    else:
-        per_orbit = 360.0 / abs(float(turn))
     cycles = min(orbits * per_orbit, max_cycles)
     return float(min(T, cycles * float(period)))
 
