@@ -923,7 +923,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_launch_options(q)
     q.add_argument("--T", type=float, default=None, metavar="SECONDS",
                    help="duration (s) integrated and drawn (default: 20 s integrated for the "
-                        "label, the first three orbits drawn)")
+                        "label, the first three orbits drawn, at most 36 theta cycles; the "
+                        "line printed says how much was drawn)")
     q.add_argument("--dt", type=float, default=1e-4, metavar="SECONDS", help="largest step (s)")
     q.add_argument("--n-out", type=int, default=4001, metavar="N", help="samples kept")
     q.add_argument("--panels", choices=("all", "path"), default="all",
