@@ -484,7 +484,10 @@ def _cmd_path(args):
         out = f"{out} and {f_out}"
     a = ds.attrs
     if is_steady(a):
-        turn = "steady (theta constant: no theta cycle, no turn per cycle)"
+        from .classify.labels import Thresholds
+
+        turn = (f"steady (theta stays within {Thresholds().steady_theta_tol_deg:g} deg: no theta "
+                "cycle, no turn per cycle)")
     elif math.isfinite(float(a["turn_per_cycle_deg"])):
         turn = f"turn per cycle {a['turn_per_cycle_deg']:.3f} deg"
     else:

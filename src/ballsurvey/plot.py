@@ -364,8 +364,8 @@ def envelope(t: np.ndarray, v: np.ndarray, bins: int = 2000) -> tuple[np.ndarray
 def spin_about_axis(theta, chidot, phidot):
     """The ball's spin about its symmetry axis, omega_eta = phidot - chidot sin(theta) (rad/s;
     theta in rad): the component of the angular velocity along the axis. Unlike chidot and
-    phidot, which both grow without bound as the axis nears the vertical (theta -> +-90 deg,
-    where the Euler angles are singular), it stays bounded: it is the physical spin."""
+    phidot, which grow large as the axis nears the vertical (the Euler angles are singular at
+    theta = +-90 deg), it stays bounded: it is the physical spin."""
     return np.asarray(phidot) - np.asarray(chidot) * np.sin(np.asarray(theta))
 
 
