@@ -28,6 +28,18 @@ def test_missing_spec_is_one_line_exit_2(tmp_path):
     assert len(r.stderr.strip().splitlines()) == 1 and "cannot read" in r.stderr
 
 
+@pytest.mark.parametrize("args", [("sweep", "sweeps/quick.toml", "--T", "-2"),
+                                  ("query", "m.nc", "--shape", "square", "--nope"),
+                                  ("plot", "m.nc", "extra.nc")])
+def test_unknown_options_are_one_line_naming_the_command(args, capsys):
+    from ballsurvey.cli import main
+
+    assert main(list(args)) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"ballsurvey {args[0]}: error: unrecognized "
+                                               "arguments: ")
+
+
 def test_bench_prints_rates_and_ratio():
     r = run("bench", "--launches", "64", "--steps", "50", "--repeats", "1")
     assert r.returncode == 0, r.stderr

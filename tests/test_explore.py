@@ -190,10 +190,37 @@ def test_uneven_axis_pixels_show_their_nearest_value():
     assert (lo, hi, list(idx)) == (0.5, 3.5, [2, 1, 0])
 
 
+@pytest.mark.parametrize("sizes", [(6, 3), (3, 6), (9, 12)])
+def test_explore_draws_a_grid_the_way_plot_does(sizes):
+    """theta0 across and chidot0 up whatever the grid sizes, as in plot's figure."""
+    from ballsurvey.plot import map_figure
+
+    codes = np.zeros((sizes[0], 1, sizes[1], 1), dtype=np.int8)
+    ds = xr.Dataset({"label": (("theta0_deg", "thetadot0", "chidot0", "phidot0"), codes)},
+                    coords={"theta0_deg": np.linspace(-10, 30, sizes[0]), "thetadot0": [0.0],
+                            "chidot0": np.linspace(1, 12, sizes[1]), "phidot0": [-3.0]})
+    view = explore.make_view(ds)
+    assert (view.x, view.y) == ("theta0_deg", "chidot0")
+    ax = map_figure(ds, contours=False).axes[0]
+    assert "theta" in ax.get_xlabel() and "chi" in ax.get_ylabel()
+    # one axis given: the other is the first free one, as in plot
+    assert (explore.make_view(ds, y="theta0_deg").x, explore.make_view(ds, x="chidot0").y) == (
+        "chidot0", "theta0_deg")
+
+
+def test_panel_texts_are_plain_text_with_units(maps, lazy):
+    """A Bokeh Div shows its text as it is: no mathtext dollars, the CLI's names and units."""
+    ds = lazy(maps / "grid.nc")
+    assert explore.make_view(ds).fixed_text() == "thetadot0 = 0 rad/s, phidot0 = -3 rad/s"
+    head = explore.launch_html(explore.launch_at(ds, {"theta0_deg": 0, "thetadot0": 0, "chidot0": 0,
+                                                      "phidot0": 0}))
+    assert "$" not in head and "theta0 = -10 deg" in head and "chidot0 = 2 rad/s" in head
+
+
 def test_views_refuse_axes_the_map_lacks(maps, lazy):
     ds = lazy(maps / "grid.nc")
     for kw, msg in ((dict(x="c"), "not an axis"), (dict(x="chidot0", y="chidot0"), "same axis"),
-                    (dict(at={"theta0_deg": 2.0}), "axis drawn"),
+                    (dict(x="theta0_deg", at={"theta0_deg": 2.0}), "axis drawn"),
                     (dict(at={"phidot0": -2.0}), "not on the map's grid")):
         with pytest.raises(api.InputError, match=msg):
             explore.make_view(ds, **kw)

@@ -95,6 +95,9 @@ def test_find_says_when_there_is_no_solution():
                         "--theta0-deg", "-5", "--phidot0", "-3", "--bracket", "10", "20"],
                        capture_output=True, text=True)
     assert r.returncode == 1 and "no solution" in r.stderr
+    said = [line for line in r.stderr.splitlines() if "no solution" in line]
+    assert len(said) == 1 and "{" not in r.stderr
+    assert "at theta0_deg = -5 deg, thetadot0 = 0 rad/s, phidot0 = -3 rad/s" in r.stderr
 
 
 def test_trace_of_exact_squares():

@@ -21,6 +21,7 @@ from ballsurvey.plot import (
     orbit_window,
     path_figure,
     shape_text,
+    spin_about_axis,
 )
 
 
@@ -67,6 +68,41 @@ def test_one_axis_given_takes_the_first_free_one_for_the_other():
     ds = _grid(5, 7)
     fig = map_figure(ds, y="theta0_deg", contours=False)
     assert "chi" in fig.axes[0].get_xlabel() and "theta" in fig.axes[0].get_ylabel()
+
+
+def test_exact_triangle_is_dashed_and_square_solid_on_the_map_and_in_its_legend():
+    ds = _grid(6, 7)
+    n = np.linspace(2.5, 4.5, 7)[None, None, :, None] + np.zeros((6, 1, 7, 1))
+    ds["n_sides"] = (ds.label.dims, n)
+    ds["label"] = (ds.label.dims, np.where(n < 3.5, CODE["triangle"], CODE["square"]).astype(
+        np.int8))
+    fig = map_figure(ds)
+    cs = [c for c in fig.axes[0].collections if hasattr(c, "levels")][0]
+    dashed = {float(lv): ls[1] is not None for lv, ls in zip(cs.levels, cs.get_linestyles())}
+    assert dashed == {3.0: True, 4.0: False}
+    legend = {h.get_label(): h.get_linestyle() for h in fig.legends[0].legend_handles
+              if h.get_label().startswith("exact")}
+    assert legend == {"exact triangle (n=3)": "--", "exact square (n=4)": "-"}
+
+
+def test_spin_about_the_axis_is_the_fixed_frame_spin_and_stays_bounded(square):
+    """omega_eta = phidot - chidot sin(theta) against w . e of the fixed-frame state, and, for
+    the paper's square, bounded where the Euler rates spike (theta near 90 deg)."""
+    from ballsurvey.physics.euler import CHD, CHI, N_EULER, PHD, PHI, TH, THD, X, Y
+    from ballsurvey.physics.fixed import EX, EZ, WX, WZ, euler_to_fixed
+
+    spin = spin_about_axis(square.theta.values, square.chidot.values, square.phidot.values)
+    for i in range(0, square.sizes["time"], 97):
+        u = np.empty(N_EULER)
+        for k, name in ((X, "x"), (Y, "y"), (TH, "theta"), (CHI, "chi"), (PHI, "phi"),
+                        (THD, "thetadot"), (CHD, "chidot"), (PHD, "phidot")):
+            u[k] = float(square[name][i])
+        v = euler_to_fixed(u)
+        assert float(np.dot(v[WX:WZ + 1], v[EX:EZ + 1])) == pytest.approx(spin[i], abs=1e-9)
+    assert np.abs(square.phidot.values).max() > 50 and np.abs(square.chidot.values).max() > 50
+    assert -3.0 < spin.min() and spin.max() < -2.5  # launched at -3 - 4.05 sin(-5 deg) = -2.65
+    rates = [ax for ax in path_figure(square).axes if ax.get_yscale() == "symlog"][0]
+    assert any("spin about the axis" in t.get_text() for t in rates.get_legend().get_texts())
 
 
 def test_map_title_names_the_ball_and_the_fixed_values(small_map):
@@ -155,6 +191,26 @@ def test_path_rates_show_spikes_and_ordinary_motion(square):
     # inside the axis, the small ones in its linear part
     assert hi > 100 and lo < -2.5
     assert rates.get_yaxis().get_transform().linthresh == pytest.approx(10.0)
+
+
+def test_path_line_says_what_was_drawn_and_no_turn_where_there_is_none(tmp_path, capsys):
+    def said(*launch):
+        assert cli.main(["path", *launch, "--panels", "path", "-o", str(tmp_path / "p.png")]) == 0
+        return capsys.readouterr().out
+
+    # Fig. 7 turns -2.9 deg a cycle: 36 cycles are a quarter of an orbit, not three orbits
+    line = said("--theta0-deg", "-5", "--chidot0", "23", "--phidot0", "-3", "--chi0-deg", "190")
+    turn = float(line.split("turn per cycle ")[1].split(" deg")[0])
+    cycles = float(line.split(" s (")[1].split(" theta cycles")[0])
+    orbits = float(line.split("theta cycles, ")[1].split(" of an orbit")[0])
+    assert cycles == 36 and orbits == pytest.approx(cycles * abs(turn) / 360.0, abs=0.005)
+    assert "three orbits" not in line
+    # a steady circle (theta stays at 24 deg) has no theta cycle to turn per
+    line = said("--theta0-deg", "24", "--chidot0", "-3.23", "--phidot0", "-10.2126")
+    assert "steady" in line and "turn per cycle -" not in line and "theta 24.00..24.00" in line
+    # a run too short for one cycle: said in words, not as nan
+    line = said("--theta0-deg", "-5", "--chidot0", "4.05", "--phidot0", "-3", "--T", "0.1")
+    assert "nan" not in line and "no turn per cycle (too few theta cycles in 0.1 s)" in line
 
 
 def test_path_command_prints_the_star_with_its_p_q(tmp_path, capsys):

@@ -8,6 +8,7 @@ other exception is a bug and shows its traceback.
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from contextlib import contextmanager
 
@@ -432,7 +433,15 @@ def _cmd_explore(args):
 
 def _cmd_path(args):
     from . import limits
-    from .plot import BODY_POINTS, orbit_window, plot_forces, plot_path, shape_text
+    from .plot import (
+        BODY_POINTS,
+        cycles_per_orbit,
+        is_steady,
+        orbit_window,
+        plot_forces,
+        plot_path,
+        shape_text,
+    )
     from .simulate import check_simulate_inputs, simulate
 
     out = _figure_file(args.output)
@@ -461,8 +470,12 @@ def _cmd_path(args):
         if window < T:
             drawn = ds.sel(time=slice(0.0, window))
             drawn.attrs = ds.attrs
-            shown = (f"; drew the first {window:.3g} s (three orbits, at most 36 theta cycles; "
-                     "--T to choose)")
+            cycles = window / float(ds.attrs["theta_period_s"])
+            orbits = cycles / cycles_per_orbit(ds.attrs)
+            orbits = (f"{orbits:.3g} orbits" if orbits >= 1.005 else
+                      "one orbit" if orbits > 0.995 else f"{orbits:.2g} of an orbit")
+            shown = (f"; drew the first {window:.3g} s ({cycles:.3g} theta cycles, {orbits}; "
+                     "at most 3 orbits or 36 cycles without --T)")
     out.parent.mkdir(parents=True, exist_ok=True)
     plot_path(drawn, out, ball=ball, panels=args.panels, dpi=dpi, show=show)
     if args.forces:
@@ -470,9 +483,17 @@ def _cmd_path(args):
         plot_forces(drawn, f_out, title=f"net force and torque about G: {ds.attrs['label']}")
         out = f"{out} and {f_out}"
     a = ds.attrs
-    print(f"{shape_text(a)}; turn per cycle {a['turn_per_cycle_deg']:.3f} deg, theta "
-          f"{a['theta_min_deg']:.2f}..{a['theta_max_deg']:.2f} deg (label from {T:g} s)"
-          f"{shown}; wrote {out}")
+    if is_steady(a):
+        from .classify.labels import Thresholds
+
+        turn = (f"steady (theta stays within {Thresholds().steady_theta_tol_deg:g} deg: no theta "
+                "cycle, no turn per cycle)")
+    elif math.isfinite(float(a["turn_per_cycle_deg"])):
+        turn = f"turn per cycle {a['turn_per_cycle_deg']:.3f} deg"
+    else:
+        turn = f"no turn per cycle (too few theta cycles in {T:g} s)"
+    print(f"{shape_text(a)}; {turn}, theta {a['theta_min_deg']:.2f}..{a['theta_max_deg']:.2f} "
+          f"deg (label from {T:g} s){shown}; wrote {out}")
 
 
 def _ball_arg(args):
@@ -807,6 +828,7 @@ def build_parser() -> argparse.ArgumentParser:
                                              "error, 130 interrupted.")
     ap.add_argument("--version", action="version", version=f"ballsurvey {_version()}")
     sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    ap.commands = sub.choices  # each command's own parser, by name
 
     def cmd(name, **kw):
         return sub.add_parser(name, formatter_class=_Help, **kw)
@@ -886,8 +908,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = cmd("plot", help="draw a regime map (PNG, PDF or SVG) from a sweep's netCDF file")
     p.add_argument("result", help="a ballsurvey netCDF map (.nc, written by sweep)")
-    p.add_argument("--x", metavar="AXIS", help="axis drawn across (default: the second longest)")
-    p.add_argument("--y", metavar="AXIS", help="axis drawn up (default: the longest)")
+    p.add_argument("--x", metavar="AXIS",
+                   help="axis drawn across (default: the map's first axis with more than one "
+                        "value, in its order theta0_deg, thetadot0, chidot0, phidot0, ...)")
+    p.add_argument("--y", metavar="AXIS",
+                   help="axis drawn up (default: the next axis with more than one value)")
     p.add_argument("--at", action="append", metavar="AXIS=VALUE",
                    help="fix another axis at one of its values (within half a grid step; "
                         "repeatable), in the axis's units (deg or rad/s)")
@@ -901,7 +926,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_launch_options(q)
     q.add_argument("--T", type=float, default=None, metavar="SECONDS",
                    help="duration (s) integrated and drawn (default: 20 s integrated for the "
-                        "label, the first three orbits drawn)")
+                        "label, the first three orbits drawn, at most 36 theta cycles; the "
+                        "line printed says how much was drawn)")
     q.add_argument("--dt", type=float, default=1e-4, metavar="SECONDS", help="largest step (s)")
     q.add_argument("--n-out", type=int, default=4001, metavar="N", help="samples kept")
     q.add_argument("--panels", choices=("all", "path"), default="all",
@@ -930,8 +956,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="port of the local app (served on 127.0.0.1 only)")
     e.add_argument("--no-browser", action="store_true",
                    help="print the address instead of opening a browser")
-    e.add_argument("--x", metavar="AXIS", help="axis drawn across (default: the second longest)")
-    e.add_argument("--y", metavar="AXIS", help="axis drawn up (default: the longest)")
+    e.add_argument("--x", metavar="AXIS",
+                   help="axis drawn across (default: the map's first axis with more than one "
+                        "value, in its order theta0_deg, thetadot0, chidot0, phidot0, ...)")
+    e.add_argument("--y", metavar="AXIS",
+                   help="axis drawn up (default: the next axis with more than one value)")
     e.add_argument("--at", action="append", metavar="AXIS=VALUE",
                    help="start another axis at one of its values (repeatable), in its units "
                         "(deg or rad/s); default: its first value")
@@ -1095,7 +1124,10 @@ def _quiet_unraisable(info) -> None:
 def main(argv=None) -> int:
     sys.unraisablehook = _quiet_unraisable
     try:
-        args = build_parser().parse_args(argv)
+        parser = build_parser()
+        args, extra = parser.parse_known_args(argv)
+        if extra:  # said by the command's own parser, so the line names the command
+            parser.commands[args.command].error(f"unrecognized arguments: {' '.join(extra)}")
     except SystemExit as exc:  # --help, --version (0) or an option argparse refused (2)
         return exc.code
     from .limits import RunError

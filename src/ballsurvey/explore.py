@@ -38,7 +38,13 @@ from .gallery import BALL_KEYS, LAUNCH_KEYS, map_ball
 from .integrate.outcome import FORMULATIONS
 from .integrate.tableaus import FIXED_STEP
 from .limits import InputError, RunError, step_count
-from .plot import EXACT_POLYGON_LEVELS, LABEL_COLOURS, axis_value_text, exact_polygon_field
+from .plot import (
+    EXACT_POLYGON_DASH,
+    EXACT_POLYGON_LEVELS,
+    LABEL_COLOURS,
+    drawn_axes,
+    exact_polygon_field,
+)
 
 INSTALL_HINT = "pip install 'ballsurvey[explore]'"
 #: the static page precomputes paths for a shown slice of at most this many launches
@@ -84,6 +90,12 @@ def _unit(axis: str) -> str:
 def axis_text(axis: str) -> str:
     """'theta0 (deg)', 'chidot0 (rad/s)': an axis name as the CLI writes it, with its units."""
     return f"{_short(axis)} ({_unit(axis)})" if _unit(axis) else _short(axis)
+
+
+def value_text(axis: str, value: float) -> str:
+    """'thetadot0 = 0 rad/s': an axis value as the CLI writes it, in plain text (a Bokeh Div
+    shows matplotlib's mathtext as it is, dollars and all)."""
+    return f"{_short(axis)} = {value:g} {_unit(axis)}".rstrip()
 
 
 # ---------------------------------------------------------------------------------------------
@@ -297,7 +309,7 @@ class View:
     def fixed_text(self) -> str:
         if self.points:
             return ""
-        return ", ".join(axis_value_text(d, float(self.ds[d].values[i]), plain=True)
+        return ", ".join(value_text(d, float(self.ds[d].values[i]))
                          for d, i in self.index.items())
 
     def nearest(self, xv: float, yv: float) -> int:
@@ -309,9 +321,10 @@ class View:
 
 def make_view(ds: xr.Dataset, x: str | None = None, y: str | None = None,
               at: dict | None = None) -> View:
-    """The first view of a map: axes x, y (default: a grid's two longest, a points map's two
-    launch axes with most values), other grid axes at `at` (values in axis units) or their
-    first value. InputError for axes the map does not have."""
+    """The first view of a map: axes x, y (default: for a grid the axes `plot` draws,
+    `plot.drawn_axes`; for a points map the two launch axes with most values), other grid axes
+    at `at` (values in axis units) or their first value. InputError for axes the map does not
+    have."""
     from .api import select
 
     at = dict(at or {})
@@ -338,9 +351,7 @@ def make_view(ds: xr.Dataset, x: str | None = None, y: str | None = None,
     if len(dims) < 2:
         raise InputError("explore draws maps with at least two axes; this one has "
                          f"{len(dims)}: use 'query'")
-    ranked = sorted((d for d in dims if d not in (x, y)), key=lambda d: -ds.sizes[d])
-    x = x or (ranked.pop(1) if len(ranked) > 1 and y is None else ranked.pop(0))
-    y = y or ranked.pop(0)
+    x, y = drawn_axes(ds, x, y, at)
     for k in at:
         if k in (x, y):
             raise InputError(f"--at {k}: {k} is an axis drawn; --at fixes one of the others")
@@ -418,7 +429,7 @@ def launch_html(info: dict, again: xr.Dataset | None = None, note: str = "",
     """The launch panel: the launch, its label and fields as stored in the map and, when given,
     as integrated again; `note` (a warning) and `timing` below."""
     launch = {**info["launch"], **info["ball"]}
-    head = ", ".join(axis_value_text(k, v, plain=True) for k, v in launch.items())
+    head = ", ".join(value_text(k, v) for k, v in launch.items())
     s = info["stored"]
     a = again.attrs if again is not None else {}
     rows = [("label", "", "label"), ("corner kind", "", "corner_kind")]
@@ -521,10 +532,11 @@ def _map_figure(view: View, title: str):
                       color_mapper=cmap)
         fmt["@image"] = words
         lines = {}
-        for lv, dash in zip(EXACT_POLYGON_LEVELS, ("dashed", "solid")):
+        for lv in EXACT_POLYGON_LEVELS:
             lx, ly = g["curves"].get(lv, ([], []))
             lines[lv] = ColumnDataSource({"x": lx, "y": ly})
-            fig.line("x", "y", source=lines[lv], color="black", line_width=1.5, line_dash=dash)
+            fig.line("x", "y", source=lines[lv], color="black", line_width=1.5,
+                     line_dash=EXACT_POLYGON_DASH[lv])
         parts.update(image=src, glyph=r.glyph, lines=lines, grid=g)
         fig.x_range.range_padding = fig.y_range.range_padding = 0
     fig.add_tools(HoverTool(renderers=[r], tooltips=tips, formatters=fmt))

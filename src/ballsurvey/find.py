@@ -183,8 +183,11 @@ def find_launch(n: int, launch: dict, solve: str = "chidot0", bracket=None,
         why = (f"; {len(roots)} root(s) of the turn integrate as another shape "
                f"({', '.join(f'{s.value:.6g}: {s.label} {s.corner_kind}' for s in rejected or [])})"
                if roots else "")
-        raise NoSolution(f"no {solve} in [{lo:g}, {hi:g}] gives n = {n} ({seen}{why}, other "
-                         f"variables { {k: v for k, v in launch.items() if k != solve} })")
+        unit = "deg" if solve == "theta0_deg" else "rad/s"
+        at = ", ".join(f"{k} = {v:g} {'deg' if k.endswith('_deg') else 'rad/s'}"
+                       for k, v in launch.items() if k != solve)
+        raise NoSolution(f"no {solve} in [{lo:g}, {hi:g}] {unit} gives n = {n} at {at} "
+                         f"({seen}{why})")
     return out
 
 

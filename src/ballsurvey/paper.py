@@ -8,7 +8,7 @@ import numpy as np
 
 from .ball import Ball
 from .physics.steady import precession_for_radius, steady_circle, steady_torque
-from .plot import launch_title, plot_forces, plot_path
+from .plot import launch_title, plot_forces, plot_path, spin_about_axis
 from .simulate import simulate
 
 #: the paper's numerical launches (as its text gives them; docs/physics.md section 5) and the
@@ -141,15 +141,20 @@ def reproduce(out_dir="results/paper", ball: Ball | None = None, T_label: float 
                      f"roundness {a['roundness']:.3f}: within +-{50 * a['roundness']:.1f} % "
                      f"of one circle ({a['n_sides']:.2f} cycles per orbit)"))
     a12 = runs["fig12a"].attrs
+    r12 = runs["fig12a"]
+    spin12 = spin_about_axis(r12.theta.values, r12.chidot.values, r12.phidot.values)
     rows += [
         ("Fig. 12a theta range (deg)", "about 0 .. about 90",
          f"{a12['theta_min_deg']:.2f} .. {a12['theta_max_deg']:.2f}",
          a12["theta_min_deg"] < 5 and a12["theta_max_deg"] > 80, ""),
         ("Fig. 12a shape", "square", f"{a12['label']} (n = {a12['n_sides']:.4f})",
          a12["label"] == "square", f"closure {a12['closure_m'] * 1e3:.3f} mm per circuit"),
-        ("Fig. 12a where spins peak", "at the corners", "mid-side (theta max)", False,
+        ("Fig. 12a where chidot, phidot peak", "at the corners", "mid-side (theta max)", False,
          "in our integration (two formulations agree) the path turns where theta is smallest; "
-         "chidot and phidot peak at theta max, where the ball rolls straight"),
+         "chidot and phidot peak at theta max, where the axis is nearest the vertical and the "
+         "Euler angles are singular: the ball does not spin faster there, its spin about its "
+         f"axis, phidot - chidot sin(theta), stays within {spin12.min():.2f}..{spin12.max():.2f}"
+         " rad/s"),
         ("Fig. 12b shape", "triangle",
          f"{runs['fig12b'].attrs['label']} (n = {runs['fig12b'].attrs['n_sides']:.4f})",
          runs["fig12b"].attrs["label"] == "triangle", ""),

@@ -31,7 +31,7 @@ LABEL_COLOURS = {
 }
 #: line colours of the path figure's panels (Okabe and Ito's colour-blind-safe set)
 LINE_COLOURS = {"chidot": "#0072b2", "phidot": "#e69f00", "friction": "#d55e00",
-                "normal": "#009e73", "corner": "#cc3311"}
+                "normal": "#009e73", "corner": "#cc3311", "spin": "#000000"}
 AXIS_TEXT = {k: ax.plot_label for k, ax in AXES.items()}
 #: figures are written in these formats, chosen by the output file's suffix
 FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
@@ -41,12 +41,11 @@ CORNER_WORDS = {"rounded": "rounded corners", "cusp": "cusped corners",
                 "loop": "looped corners"}
 
 
-def axis_value_text(axis: str, value: float, plain: bool = False) -> str:
+def axis_value_text(axis: str, value: float) -> str:
     """'$\\dot\\phi_0$ = -3 rad/s', '$\\theta_0$ = 5 deg': the axis's plot symbol, its value and
-    units (matplotlib mathtext, as on the axes); plain: the axis's name instead of its symbol
-    ('phidot0 = -3 rad/s'), for text that is not drawn by matplotlib (a web page)."""
+    units (matplotlib mathtext, as on the axes)."""
     label = AXES[axis].plot_label if axis in AXES else axis
-    symbol = axis.removesuffix("_deg") if plain else label.split(" (")[0]
+    symbol = label.split(" (")[0]
     unit = AXES[axis].text_units if axis in AXES else ""
     return f"{symbol} = {value:g} {unit}".rstrip()
 
@@ -148,8 +147,27 @@ def default_axes(ds: xr.Dataset, exclude=(), need: int = 2) -> tuple[str, ...]:
     return tuple(dims[:need])
 
 
+def drawn_axes(ds: xr.Dataset, x: str | None = None, y: str | None = None,
+               at: dict | None = None, facet: str | None = None) -> tuple[str, str]:
+    """The axes a map is drawn over, across and up: `x` and `y` where given, the others from
+    `default_axes` (the map's first axes with more than one value, in its own order, leaving
+    out `facet` and, where enough are left, the axes `at` fixes). Used by `plot` and
+    `explore`, so both draw a map the same way round."""
+    if x is not None and y is not None:
+        return x, y
+    taken = ({facet} if facet else set()) | {a for a in (x, y) if a}
+    need = (x is None) + (y is None)
+    try:  # the axes --at fixes are not drawn, where others are left to draw
+        free = default_axes(ds, exclude=taken | set(at or {}), need=need)
+    except InputError:  # too few left: the caller says which axis --at fixes that is drawn
+        free = default_axes(ds, exclude=taken, need=need)
+    return (x, free[0]) if x else (free[0], y or free[1])
+
+
 #: n_sides of the exact-polygon curves drawn over a map: the exact triangle and square
 EXACT_POLYGON_LEVELS = (3.0, 4.0)
+#: how each curve is drawn, by `plot` and `explore` alike: the triangle dashed, the square solid
+EXACT_POLYGON_DASH = {3.0: "dashed", 4.0: "solid"}
 
 
 def exact_polygon_field(panel: xr.Dataset, x: str, y: str) -> np.ndarray | None:
@@ -207,14 +225,7 @@ def map_figure(ds: xr.Dataset, x: str | None = None, y: str | None = None,
     if facet is not None and facet in (x, y):
         raise InputError(f"--facet {facet} is also the axis drawn "
                          f"{'across (--x)' if facet == x else 'up (--y)'}: facet by another axis")
-    if x is None or y is None:  # the map's first free axes, whatever the grid sizes
-        taken = ({facet} if facet else set()) | {a for a in (x, y) if a}
-        need = (x is None) + (y is None)
-        try:  # the axes --at fixes are not drawn, where others are left to draw
-            free = default_axes(ds, exclude=taken | set(at or {}), need=need)
-        except InputError:  # too few left: _select says which axis --at fixes that is drawn
-            free = default_axes(ds, exclude=taken, need=need)
-        x, y = (x, y) if x and y else ((x, free[0]) if x else (free[0], y or free[1]))
+    x, y = drawn_axes(ds, x, y, at, facet)
     if x == y:
         raise InputError(f"--x and --y are the same axis ({x})")
     for a in (x, y) + ((facet,) if facet else ()):
@@ -239,7 +250,8 @@ def map_figure(ds: xr.Dataset, x: str | None = None, y: str | None = None,
         ns = exact_polygon_field(panel, x, y) if contours else None
         if ns is not None:
             cs = ax.contour(xs, ys, ns, levels=list(EXACT_POLYGON_LEVELS), colors="k",
-                            linewidths=1.0)
+                            linewidths=1.0,
+                            linestyles=[EXACT_POLYGON_DASH[lv] for lv in EXACT_POLYGON_LEVELS])
             ax.clabel(cs, fmt={3.0: "n=3", 4.0: "n=4"}, fontsize=8)
             drew_contours = True
         ax.set_xlabel(AXIS_TEXT.get(x, x))
@@ -261,8 +273,8 @@ def map_figure(ds: xr.Dataset, x: str | None = None, y: str | None = None,
     if drew_contours:
         from matplotlib.lines import Line2D
 
-        handles.append(Line2D([], [], color="k", lw=1.0,
-                              label="exact triangle (n=3)\nand square (n=4)"))
+        handles += [Line2D([], [], color="k", lw=1.0, ls=EXACT_POLYGON_DASH[lv], label=text)
+                    for lv, text in ((3.0, "exact triangle (n=3)"), (4.0, "exact square (n=4)"))]
     fig.legend(handles=handles, loc="outside right center", title="path shape", fontsize=9)
     return fig
 
@@ -301,18 +313,34 @@ def corner_indices(ds: xr.Dataset, heading_rate: np.ndarray | None = None) -> np
     return np.concatenate([[0], mins]).astype(int) if starts_low else mins.astype(int)
 
 
+def cycles_per_orbit(attrs: dict) -> float:
+    """Theta cycles in one orbit (360 deg of net turn): p for a star {p/q}, 360/|turn per
+    cycle| otherwise; NaN without a turn."""
+    turn = attrs.get("turn_per_cycle_deg")
+    if attrs.get("label") == "star" and _finite(attrs.get("star_points")):
+        return float(attrs["star_points"])
+    return 360.0 / abs(float(turn)) if _finite(turn) and float(turn) != 0 else math.nan
+
+
+def is_steady(attrs: dict) -> bool:
+    """A circle whose theta stays within the classifier's steady tolerance
+    (`Thresholds.steady_theta_tol_deg`, 0.5 deg): it has no theta cycle to speak of, so no turn
+    per cycle either."""
+    from .classify.labels import Thresholds
+
+    lo, hi = attrs.get("theta_min_deg"), attrs.get("theta_max_deg")
+    return (attrs.get("label") == "circle" and _finite(lo) and _finite(hi)
+            and float(hi) - float(lo) < Thresholds().steady_theta_tol_deg)
+
+
 def orbit_window(attrs: dict, T: float, orbits: float = 3.0, max_cycles: int = 36) -> float:
     """A duration (s) that shows `orbits` orbits of a launch, an orbit being 360 deg of net turn:
     p theta cycles for a star {p/q}, 360/|turn per cycle| cycles otherwise; at most `max_cycles`
     cycles (a near-straight path turns little) and at most T. T when the launch has no theta
     period or no turn (a steady circle)."""
-    period, turn = attrs.get("theta_period_s"), attrs.get("turn_per_cycle_deg")
-    if not (_finite(period) and float(period) > 0 and _finite(turn) and float(turn) != 0):
+    period, per_orbit = attrs.get("theta_period_s"), cycles_per_orbit(attrs)
+    if not (_finite(period) and float(period) > 0 and _finite(per_orbit)) or is_steady(attrs):
         return T
-    if attrs.get("label") == "star" and _finite(attrs.get("star_points")):
-        per_orbit = float(attrs["star_points"])
-    else:
-        per_orbit = 360.0 / abs(float(turn))
     cycles = min(orbits * per_orbit, max_cycles)
     return float(min(T, cycles * float(period)))
 
@@ -333,10 +361,19 @@ def envelope(t: np.ndarray, v: np.ndarray, bins: int = 2000) -> tuple[np.ndarray
     return np.asarray(ti), np.asarray(vi)
 
 
+def spin_about_axis(theta, chidot, phidot):
+    """The ball's spin about its symmetry axis, omega_eta = phidot - chidot sin(theta) (rad/s;
+    theta in rad): the component of the angular velocity along the axis. Unlike chidot and
+    phidot, which grow large as the axis nears the vertical (the Euler angles are singular at
+    theta = +-90 deg), it stays bounded: it is the physical spin."""
+    return np.asarray(phidot) - np.asarray(chidot) * np.sin(np.asarray(theta))
+
+
 def _dense_rates(ds: xr.Dataset, ball: Ball, max_samples: int = 1_000_001):
-    """Time and the rates chidot, phidot at every integration step of the launch `ds` was made
-    from (spin spikes near theta = 90 deg last a few ms: a coarse trajectory misses their tops);
-    `ds` itself when it cannot be integrated again (no launch in its attributes) or is dense."""
+    """Time, the rates chidot, phidot and theta (rad) at every integration step of the launch
+    `ds` was made from (the rate spikes near theta = 90 deg last a few ms: a coarse trajectory
+    misses their tops); `ds` itself when it cannot be integrated again (no launch in its
+    attributes) or is dense."""
     a = ds.attrs
     keys = ("theta0_deg", "thetadot0", "chidot0", "phidot0")
     t = ds.time.values
@@ -351,10 +388,11 @@ def _dense_rates(ds: xr.Dataset, ball: Ball, max_samples: int = 1_000_001):
             dense = simulate(*(float(a[k]) for k in keys), T=T, dt=dt,
                              chi0_deg=float(a.get("chi0_deg", 0.0)), ball=ball, n_out=n_out,
                              method=str(a.get("method", "rk4")))
-            return dense.time.values + t[0], dense.chidot.values, dense.phidot.values
+            return (dense.time.values + t[0], dense.chidot.values, dense.phidot.values,
+                    dense.theta.values)
         except (InputError, ValueError):
             pass
-    return t, ds.chidot.values, ds.phidot.values
+    return t, ds.chidot.values, ds.phidot.values, ds.theta.values
 
 
 def plot_path(ds: xr.Dataset, out=None, ball: Ball | None = None, title: str | None = None,
@@ -364,8 +402,10 @@ def plot_path(ds: xr.Dataset, out=None, ball: Ball | None = None, title: str | N
     Left: the path of the centre of mass coloured by theta, its corners (theta minima) and its
     start marked, the shape in the title. Right: theta(t); chidot and phidot(t) at every
     integration step on a symmetric-log scale (linear within +-10 rad/s, so the ordinary motion
-    and the spin spikes near theta = 90 deg both show); friction ratio |F_h|/N and normal force
-    N(t). Written as PNG, PDF or SVG by the suffix of `out`.
+    and their spikes near theta = 90 deg both show), and the spin about the symmetry axis
+    `spin_about_axis` (the spikes of chidot and phidot come from the Euler angles, singular at
+    theta = +-90 deg, not from the ball, whose spin about its axis stays bounded); friction
+    ratio |F_h|/N and normal force N(t). Written as PNG, PDF or SVG by the suffix of `out`.
 
     Parameters
     ----------
@@ -448,11 +488,14 @@ def path_figure(ds: xr.Dataset, ball: Ball | None = None, title: str | None = No
         ax1.plot(t[ci], th[ci], "o", ms=4, mfc="none", mec=LINE_COLOURS["corner"])
     ax1.set_ylabel(r"$\theta$ (deg)")
     ax2 = fig.add_subplot(gs[1, 1], sharex=ax1)
-    td, chid, phid = _dense_rates(ds, ball)
+    td, chid, phid, thd = _dense_rates(ds, ball)
     ax2.plot(*envelope(td, phid), color=LINE_COLOURS["phidot"], lw=1.0, label=r"$\dot\phi$",
              zorder=2)
     ax2.plot(*envelope(td, chid), color=LINE_COLOURS["chidot"], lw=1.0, ls=(0, (4, 1.5)),
              label=r"$\dot\chi$", zorder=3)
+    ax2.plot(*envelope(td, spin_about_axis(thd, chid, phid)), color=LINE_COLOURS["spin"], lw=1.2,
+             label="spin about the axis\n" + r"$\omega_\eta = \dot\phi - \dot\chi\sin\theta$",
+             zorder=4)
     ax2.set_yscale("symlog", linthresh=10.0, linscale=1.0)
     ax2.axhline(0.0, color="0.6", lw=0.5, zorder=1)
     ax2.set_ylabel("rate (rad/s)\nlinear to $\\pm$10, then log", fontsize=9)
