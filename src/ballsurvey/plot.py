@@ -514,8 +514,26 @@ def path_figure(ds: xr.Dataset, ball: Ball | None = None, title: str | None = No
                         Line2D([], [], color=LINE_COLOURS["normal"], lw=1.2, ls=(0, (4, 1.5)),
                                label="N")],
                loc="lower left", bbox_to_anchor=(1.12, 0.0), fontsize=8, frameon=False)
+    for axis, values, floor in ((ax1, th, 0.5), (ax3, diag["friction_ratio"], None),
+                                (ax4, diag["normal_N"], None)):
+        _no_noise_scale(axis, values, floor)
     fig.suptitle(title or launch_title(a), fontsize=11)
     return fig
+
+
+def _no_noise_scale(ax, values, half_span=None) -> None:
+    """A panel of a quantity that hardly changes (a steady launch) drawn on a sensible scale:
+    plain tick labels (no offset like 1e-5+2.4e1) and at least +-half_span (default: 5 % of the
+    value) about its mean, so rounding noise is not blown up into a band."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return
+    mid = float(v.mean())
+    h = half_span if half_span is not None else 0.05 * max(abs(mid), 1e-12)
+    if np.ptp(v) < h:
+        ax.set_ylim(mid - h, mid + h)
+    ax.ticklabel_format(axis="y", useOffset=False, style="plain")
 
 
 def launch_title(attrs: dict) -> str:
