@@ -54,7 +54,9 @@ def test_readme_is_a_front_page():
     assert "mkdocs serve" in text
     # the docs speak of the project as it is: no issue numbers, no log of how it was made
     assert not re.search(r"#\d", text)
-    for word in ("session", "last round", "goal", "probe"):
+    # ("probe" alone is the paper's wire probe in the flat face; a speed-up tried and dropped is
+    # what may not be logged here)
+    for word in ("session", "last round", "goal", "probe not kept", "not kept"):
         assert word not in text.lower(), word
 
 
