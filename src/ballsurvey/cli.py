@@ -518,6 +518,16 @@ def _add_launch_options(parser) -> None:
                         help="initial heading (deg)")
 
 
+def _add_drawn_axes_options(parser) -> None:
+    """--x and --y of a command that draws a map (plot, explore): both choose alike."""
+    parser.add_argument("--x", metavar="AXIS",
+                        help="axis drawn across (default: the map's first axis with more than "
+                             "one value, in its order theta0_deg, thetadot0, chidot0, phidot0, "
+                             "...)")
+    parser.add_argument("--y", metavar="AXIS",
+                        help="axis drawn up (default: the next axis with more than one value)")
+
+
 def _add_ball_options(parser, default="the paper's truncated billiard ball") -> None:
     g = parser.add_argument_group(f"the ball (default: {default})")
     g.add_argument("--ball", metavar="K=V,...",
@@ -908,11 +918,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = cmd("plot", help="draw a regime map (PNG, PDF or SVG) from a sweep's netCDF file")
     p.add_argument("result", help="a ballsurvey netCDF map (.nc, written by sweep)")
-    p.add_argument("--x", metavar="AXIS",
-                   help="axis drawn across (default: the map's first axis with more than one "
-                        "value, in its order theta0_deg, thetadot0, chidot0, phidot0, ...)")
-    p.add_argument("--y", metavar="AXIS",
-                   help="axis drawn up (default: the next axis with more than one value)")
+    _add_drawn_axes_options(p)
     p.add_argument("--at", action="append", metavar="AXIS=VALUE",
                    help="fix another axis at one of its values (within half a grid step; "
                         "repeatable), in the axis's units (deg or rad/s)")
@@ -945,7 +951,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "radius)")
     q.add_argument("--forces", action="store_true",
                    help="also draw the net force (N) and torque about G (N m) against time, as "
-                        "the paper's Figs. 4b, 7b, into FILE-forces.png")
+                        "the paper's Figs. 4b, 7b, into FILE-forces (FILE's suffix)")
     _add_ball_options(q)
     q.set_defaults(func=_cmd_path)
 
@@ -956,11 +962,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="port of the local app (served on 127.0.0.1 only)")
     e.add_argument("--no-browser", action="store_true",
                    help="print the address instead of opening a browser")
-    e.add_argument("--x", metavar="AXIS",
-                   help="axis drawn across (default: the map's first axis with more than one "
-                        "value, in its order theta0_deg, thetadot0, chidot0, phidot0, ...)")
-    e.add_argument("--y", metavar="AXIS",
-                   help="axis drawn up (default: the next axis with more than one value)")
+    _add_drawn_axes_options(e)
     e.add_argument("--at", action="append", metavar="AXIS=VALUE",
                    help="start another axis at one of its values (repeatable), in its units "
                         "(deg or rad/s); default: its first value")
