@@ -166,8 +166,8 @@ def simulate(theta0_deg: float, thetadot0: float, chidot0: float, phidot0: float
     A launch whose tilt reaches 90 deg (the Euler form's singularity) is integrated again in the
     fixed-frame form (attrs formulation = "fixed_frame"), with the map's fallback settings. At a
     sample where the symmetry axis is within 1e-9 rad of the vertical the Euler angles and their
-    rates are not defined: that sample's angles, rates and energy are NaN (x, y, the body points'
-    x and y and the label's fields are not affected).
+    rates are not defined: that sample's angles, rates, energy, body points and forces are NaN
+    (the centre's x, y and the label's fields are not affected).
     Inputs are checked by the rules of `ballsurvey.limits`: a bad one raises InputError.
 
     Examples
