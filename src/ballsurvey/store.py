@@ -35,8 +35,8 @@ RESULT_VARIABLES = {
     "theta_period_s": ("f8", "s", "period of the tilt theta", {}),
     "side_m": ("f8", "m", "polygon side: distance between successive theta minima (corners)", {}),
     "chord_m": ("f8", "m", "chord between successive theta maxima (mid-side to mid-side)", {}),
-    "roundness": ("f8", "1", "radial spread of the path about its orbit centre over the mean "
-                  "radius (0 for a circle)", {}),
+    "roundness": ("f8", "1", "(largest - smallest distance of the path from its orbit centre) "
+                  "over the mean of the two (0 for a circle)", {}),
     "corner_kind": ("i1", None, "kind of corner",
                     {"flag_values": np.arange(len(CORNER_KINDS), dtype=np.int8),
                      "flag_meanings": " ".join(CORNER_KINDS)}),
