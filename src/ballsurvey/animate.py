@@ -7,6 +7,7 @@ GIF through Pillow (a matplotlib dependency), MP4 through ffmpeg where it is ins
 from __future__ import annotations
 
 import math
+import os
 import shutil
 from pathlib import Path
 
@@ -193,5 +194,12 @@ def write_animation(ds: xr.Dataset, out, ball: Ball | None = None, fps: float = 
     anim = animation(ds, ball, fps, speed, probe_m)
     writer = PillowWriter(fps=fps) if p.suffix.lower() == ".gif" else FFMpegWriter(fps=fps)
     p.parent.mkdir(parents=True, exist_ok=True)
-    anim.save(p, writer=writer, dpi=80)
+    # written beside the target and renamed when whole: a Ctrl-C or a full disk leaves no
+    # truncated file that looks like an animation
+    tmp = p.with_name(f".{p.stem}.partial{p.suffix}")
+    try:
+        anim.save(tmp, writer=writer, dpi=80)
+        os.replace(tmp, p)
+    finally:
+        tmp.unlink(missing_ok=True)
     return p

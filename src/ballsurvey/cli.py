@@ -31,9 +31,9 @@ def _opt(name, value, **rules):
         raise UserError(str(exc)) from None
 
 
-def _launch_opt(flag, name, value):
-    """A launch input option: theta0_deg inside the model's tilts (the paper's ball), a rate or
-    the heading within `limits.LAUNCH_BOUNDS`; UserError naming the flag."""
+def _launch_opt(flag, name, value, ball=None):
+    """A launch input option: theta0_deg inside the model's tilts (of `ball`, default the
+    paper's), a rate or the heading within `limits.LAUNCH_BOUNDS`; UserError naming the flag."""
     import math
 
     from . import limits
@@ -47,7 +47,7 @@ def _launch_opt(flag, name, value):
         value = limits.number(flag, value)
     except limits.InputError as exc:
         raise UserError(str(exc)) from None
-    problem = tilt_error(value, math.degrees(Ball.paper().flat_face_theta_rad))
+    problem = tilt_error(value, math.degrees((ball or Ball.paper()).flat_face_theta_rad))
     if problem:
         raise UserError(f"{flag}: {problem}")
     return value
@@ -446,15 +446,18 @@ def _cmd_path(args):
 
     out = _figure_file(args.output)
     dpi = _opt("--dpi", args.dpi, integer=True, lo=20, hi=1200)
+    ball = _ball_arg(args)
     for name in ("theta0_deg", "thetadot0", "chidot0", "phidot0", "chi0_deg"):
-        _launch_opt("--" + name.replace("_", "-"), name, getattr(args, name))
+        _launch_opt("--" + name.replace("_", "-"), name, getattr(args, name), ball)
     T = args.T if args.T is not None else PATH_T
     show = [w.strip() for w in (args.show or "").split(",") if w.strip()]
     for w in show:
         if w not in BODY_POINTS:
             raise UserError(f"--show: unknown body point {w!r}; known: {', '.join(BODY_POINTS)}")
     probe = _opt("--probe-m", args.probe_m, nonnegative=True, hi=1.0)
-    ball = _ball_arg(args)
+    forces_out = out.with_name(out.stem + "-forces" + out.suffix) if args.forces else None
+    if forces_out is not None:
+        _out_file("--forces", str(forces_out), out.suffix)  # a folder there, unwritable: refused
     try:
         limits.steps(T, args.dt, "--T", "--dt")
         limits.samples(args.n_out, "--n-out")
@@ -478,10 +481,10 @@ def _cmd_path(args):
                      "at most 3 orbits or 36 cycles without --T)")
     out.parent.mkdir(parents=True, exist_ok=True)
     plot_path(drawn, out, ball=ball, panels=args.panels, dpi=dpi, show=show)
-    if args.forces:
-        f_out = out.with_name(out.stem + "-forces" + out.suffix)
-        plot_forces(drawn, f_out, title=f"net force and torque about G: {ds.attrs['label']}")
-        out = f"{out} and {f_out}"
+    if forces_out is not None:
+        plot_forces(drawn, forces_out,
+                    title=f"net force and torque about G: {ds.attrs['label']}")
+        out = f"{out} and {forces_out}"
     a = ds.attrs
     if is_steady(a):
         from .classify.labels import Thresholds
@@ -545,8 +548,9 @@ def _cmd_animate(args):
     from .animate import check_output, frame_count, write_animation
     from .simulate import check_simulate_inputs, simulate
 
+    ball = _ball_arg(args)
     for name in ("theta0_deg", "thetadot0", "chidot0", "phidot0", "chi0_deg"):
-        _launch_opt("--" + name.replace("_", "-"), name, getattr(args, name))
+        _launch_opt("--" + name.replace("_", "-"), name, getattr(args, name), ball)
     fps = _opt("--fps", args.fps, positive=True, hi=120)
     speed = _opt("--speed", args.speed, positive=True, hi=100)
     probe = _opt("--probe-m", args.probe_m, nonnegative=True, hi=1.0)
@@ -554,7 +558,7 @@ def _cmd_animate(args):
         out = check_output(args.output)
     except limits.InputError as exc:
         raise UserError(f"-o/--output: {exc}") from None
-    ball = _ball_arg(args)
+    _check_writable("-o/--output", out.parent)
     try:
         limits.steps(args.T, args.dt, "--T", "--dt")
         check_simulate_inputs(args.theta0_deg, args.thetadot0, args.chidot0, args.phidot0, args.T,
@@ -654,7 +658,7 @@ def _cmd_find(args):
     _opt("--n-sides", args.n_sides, integer=True, lo=3, hi=1000)
     ball = _ball_arg(args)
     for name in ("theta0_deg", "thetadot0", "chidot0", "phidot0"):
-        _launch_opt("--" + name.replace("_", "-"), name, getattr(args, name))
+        _launch_opt("--" + name.replace("_", "-"), name, getattr(args, name), ball)
     if args.bracket:
         # a theta0 bracket may reach past the model's tilts: the scan skips what it cannot take
         lo, hi = (_opt("--bracket", v) if args.solve == "theta0_deg"
@@ -665,7 +669,7 @@ def _cmd_find(args):
         raise UserError("-o/--output goes with --trace-theta0 (one solve prints its roots)")
     out = _out_file("-o/--output", args.output, ".csv")
     if args.trace_theta0:
-        start, stop = (_launch_opt("--trace-theta0", "theta0_deg", v)
+        start, stop = (_launch_opt("--trace-theta0", "theta0_deg", v, ball)
                        for v in args.trace_theta0[:2])
         _opt("--trace-theta0 NUM", args.trace_theta0[2], integer=True, lo=1,
              hi=min(limits.MAX_LAUNCHES, 10**5))
@@ -1149,7 +1153,8 @@ def main(argv=None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     except OSError as exc:  # the system refused a file operation (disk full, permissions)
-        what = f"{exc.strerror}: {exc.filename}" if exc.strerror and exc.filename else str(exc)
+        name = exc.filename or getattr(args, "html", None) or getattr(args, "output", None)
+        what = f"{exc.strerror or exc}: {name}" if name else str(exc)
         print(f"ballsurvey {args.command}: error: {what or type(exc).__name__}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:

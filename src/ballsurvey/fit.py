@@ -143,6 +143,9 @@ def make_track(t, x=None, y=None, *, theta_deg=None, chidot=None, x_tip=None, y_
             raise limits.InputError(f"{source}: a probe track needs the probe's length "
                                     "(--probe-m, m)")
         probe_m = limits.number("probe_m", probe_m, positive=True, hi=1.0)
+    elif probe_m is not None:
+        raise limits.InputError(f"{source}: the probe's length (--probe-m) goes with a track of "
+                                f"the probe ({', '.join(PROBE_COLUMNS)}); this one has x, y")
     if t.size < MIN_SAMPLES:
         raise limits.InputError(f"{source}: {t.size} samples is too short a track; a fit needs "
                                 f"at least {MIN_SAMPLES}")
