@@ -272,7 +272,9 @@ def label_fields(obs: np.ndarray, flat_face_theta, th: Thresholds = Thresholds()
         "star_points": np.where(label == CODE["star"], star_p, 0).astype(np.int16),
         "star_step": np.where(label == CODE["star"], star_q, 0).astype(np.int16),
         "n_theta_cycles": n_cyc.astype(np.int32),
-        "samples_per_cycle": np.where(has, samples, np.nan),
+        # also where no cycle completed (theta's largest step between samples still tells how
+        # coarse the sampling is: an aliased run may see no cycle at all); not for steady runs
+        "samples_per_cycle": np.where(steady, np.nan, samples),
         "chord_turn_per_cycle_deg": turning(chord_turn),
         "theta_min_deg": np.degrees(o[ob.O_TH_MIN]),
         "theta_max_deg": np.degrees(o[ob.O_TH_MAX]),
