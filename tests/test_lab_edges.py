@@ -78,3 +78,22 @@ def test_an_interrupted_animation_leaves_no_file(tmp_path, monkeypatch):
         animate.write_animation(ds, tmp_path / "cc.gif")
     assert sorted(p.name for p in tmp_path.iterdir()) == []
     assert np.isfinite(ds.x.values).all()
+
+
+def test_fit_refuses_a_gap_and_a_huge_track_in_one_line(tmp_path, capsys):
+    # the median spacing alone was checked: a last sample moved to t = 5 s was fitted (slowly),
+    # and a 1e6-row track took minutes and 1.7 GB
+    ds = ballsurvey.simulate(-5.0, 0.0, 4.05, -3.0, T=1.0, n_out=301)
+    t = ds.time.values.copy()
+    t[-1] = 5.0
+    gap = tmp_path / "gap.csv"
+    pd.DataFrame({"t": t, "x": ds.x.values, "y": ds.y.values}).to_csv(gap, index=False)
+    assert main(["fit", str(gap)]) == 2
+    assert "sample 301 (t = 5 s)" in _one_line(capsys)
+    n = 200_001
+    huge = tmp_path / "huge.csv"
+    tt = np.arange(n) / 1000.0
+    pd.DataFrame({"t": tt, "x": 0.01 * np.sin(tt), "y": 0.01 * np.cos(tt)}).to_csv(huge,
+                                                                               index=False)
+    assert main(["fit", str(huge)]) == 2
+    assert "200001 samples" in _one_line(capsys)

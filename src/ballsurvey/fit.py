@@ -69,6 +69,8 @@ N_CARRIED = 3
 #: track checks: fewest samples, shortest duration (s), largest sample interval (s), largest
 #: speed (m/s), largest extent (m): beyond them the track is not a rolling ball in s and m
 MIN_SAMPLES = 20
+#: most samples a track may have (600 s at 300 per second is 180 000)
+MAX_SAMPLES = 200_000
 MIN_DURATION_S = 0.2
 MAX_INTERVAL_S = 0.1
 MAX_SPEED = 5.0
@@ -165,6 +167,14 @@ def make_track(t, x=None, y=None, *, theta_deg=None, chidot=None, x_tip=None, y_
         raise limits.InputError(f"{source}: samples are {np.median(steps):g} s apart (median); "
                                 f"a fit needs at most {MAX_INTERVAL_S:g} s (is t in ms? t is "
                                 "in s)")
+    gap = int(np.argmax(steps))
+    if steps[gap] > MAX_INTERVAL_S:
+        raise limits.InputError(f"{source}: sample {gap + 2} (t = {t[gap + 1]:g} s) comes "
+                                f"{steps[gap]:g} s after the one before; a fit needs samples at "
+                                f"most {MAX_INTERVAL_S:g} s apart (cut the track at the gap)")
+    if t.size > MAX_SAMPLES:
+        raise limits.InputError(f"{source}: {t.size} samples; a fit takes at most {MAX_SAMPLES} "
+                                "(keep every k-th row: 300 per second is plenty)")
     for px, py in (("x", "y"), ("x_tip", "y_tip"), ("x_base", "y_base")):
         if cols[px] is None:
             continue
@@ -554,6 +564,8 @@ def fit_track(track, ball: Ball | None = None, *, probe_m: float | None = None, 
     out = {}
     for k, v, e in zip(PARAMS, q, err):
         out[k], out[k + "_err"] = float(v), float(e)
+    # the heading is an angle: reported in (-180, 180] deg (the fit may wander a few turns)
+    out["chi0_deg"] = float(-((-out["chi0_deg"] + 180.0) % 360.0 - 180.0)) + 0.0
     out.update(rms_m=rms, label=lab, t_start=track.t_start, n_samples=int(track.t.size),
                cost=float(2 * best.cost), survey_launches=int(n_survey),
                seconds=time.perf_counter() - t_wall)
