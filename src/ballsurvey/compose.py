@@ -81,11 +81,15 @@ def needs_fallback(res: oc.Result, thresholds: Thresholds = Thresholds()) -> np.
         chart | near_vertical | (bad_num & (tilt > NEAR_SINGULAR_THETA)))
 
 
+#: the fallback's integration settings, one set for a map's launches and a single trajectory
+FALLBACK = dict(rtol=FALLBACK_RTOL, atol=FALLBACK_ATOL, observer=OBSERVER, n_slots=N_OBS,
+                fixed_frame=True, h_init=FALLBACK_H_INIT, h_max=FALLBACK_H_MAX)
+
+
 def _fixed_frame(y0, params, T_nd, *, parallel, stop_after=0) -> oc.Result:
     """The fallback's integration: adaptive, in the fixed frame, observed."""
-    return integrate_adaptive(y0, params, T_nd, FALLBACK_RTOL, FALLBACK_ATOL, observer=OBSERVER,
-                              n_slots=N_OBS, fixed_frame=True, h_init=FALLBACK_H_INIT,
-                              parallel=parallel, stop_after=stop_after, h_max=FALLBACK_H_MAX)
+    return integrate_adaptive(y0, params, T_nd, parallel=parallel, stop_after=stop_after,
+                              **FALLBACK)
 
 
 def fixed_frame_fallback(y0, params, T_nd, res: oc.Result, *, thresholds=Thresholds(),
@@ -180,10 +184,7 @@ def run_trajectory(y0_col, params_col, plan: StepPlan, method="rk4", *, n_out=20
     else:
         raise ValueError(f"unknown method {method!r}; known: {', '.join(METHODS)}")
     if needs_fallback(res, thresholds)[0]:
-        res = trajectory_adaptive(y0[:, 0], p[:, 0], plan.T_nd, FALLBACK_RTOL, FALLBACK_ATOL,
-                                  observer=OBSERVER, n_slots=N_OBS, t_out=res.t,
-                                  fixed_frame=True, h_init=FALLBACK_H_INIT,
-                                  h_max=FALLBACK_H_MAX)
+        res = trajectory_adaptive(y0[:, 0], p[:, 0], plan.T_nd, t_out=res.t, **FALLBACK)
     return res
 
 
@@ -240,9 +241,7 @@ def warm_up_fallback() -> None:
     that follows excludes its compilation)."""
     y0 = launch_state(np.full(2, 5.7), 0.0, 1.0, -1.0, 1.0)
     params = np.repeat(np.array([[0.1], [0.4], [0.4]]), 2, 1)
-    integrate_adaptive(y0, params, 0.01, FALLBACK_RTOL, FALLBACK_ATOL, observer=OBSERVER,
-                       n_slots=N_OBS, fixed_frame=True, h_init=FALLBACK_H_INIT, parallel=True,
-                       stop_after=stop_target(2), h_max=FALLBACK_H_MAX)
+    _fixed_frame(y0, params, 0.01, parallel=True, stop_after=stop_target(2))
 
 
 def run_tracks(y0, params, plan: StepPlan, stride: int, n_rec: int, *,
