@@ -169,6 +169,126 @@ def _locate(obs, i, t, x, y, sth, cth, chi, thd, chd, phd, u, w, psid, c, A, B):
 
 
 @jit
+def start_record(obs, i, th, e, jel, rou, fric, normal, speed, thd, thdd):
+    """Launch i's slots at its first sample: tilt th, the invariants e, jel, rou, friction demand
+    and normal force, G's speed, and thetadot, thetaddot (the launch's steadiness)."""
+    obs[O_TH_MIN, i] = th
+    obs[O_TH_MAX, i] = th
+    obs[O_E0, i], obs[O_J0, i], obs[O_R0, i] = e, jel, rou
+    obs[O_DE, i] = obs[O_DJ, i] = obs[O_DR, i] = 0.0
+    obs[O_FRIC, i] = fric
+    obs[O_NMIN, i] = normal
+    obs[O_NMAX, i] = 0.0
+    for k in range(O_T1, O_YP + 1):
+        obs[k, i] = math.nan
+    obs[O_A_PSID, i] = 0.0
+    obs[O_A_TURN, i] = 0.0
+    obs[O_A_VMIN, i] = speed
+    obs[O_A_VINT, i] = 0.0
+    obs[O_A_QUART, i] = 0.0
+    for k in range(O_C_PSID, O_C_DUR + 1):
+        obs[k, i] = math.nan
+    obs[O_CR_SUM, i] = 0.0
+    obs[O_CR_N, i] = 0.0
+    obs[O_CR_ANG, i] = math.nan
+    obs[O_A_RAW, i] = 0.0
+    obs[O_C_RAW, i] = math.nan
+    for k in range(O_RC_X, O_C_SIDE + 1):
+        obs[k, i] = math.nan
+    obs[O_NMIN_EV, i] = 0.0
+    obs[O_THD0, i] = abs(thd)
+    obs[O_THDD0, i] = abs(thdd)
+    obs[O_PSIL, i] = math.nan
+    obs[O_A_NSAMP, i] = 0.0
+    obs[O_HD_SUM, i] = 0.0
+    obs[O_HD_N, i] = 0.0
+    obs[O_TH_STEP, i] = 0.0
+    obs[O_C_NSAMP, i] = math.nan
+
+
+@jit
+def on_minimum(obs, i, th_ev, xm, ym):
+    """A theta minimum (thetadot turning from - to +, where the path turns: a corner) at G's
+    position (xm, ym): theta's least value, and the distance from the last minimum (a side)."""
+    obs[O_TH_MIN, i] = min(obs[O_TH_MIN, i], th_ev)
+    if obs[O_NMIN_EV, i] >= 1.0:
+        obs[O_C_SIDE, i] = math.hypot(xm - obs[O_XM, i], ym - obs[O_YM, i])
+    obs[O_XM, i], obs[O_YM, i] = xm, ym
+    obs[O_NMIN_EV, i] += 1.0
+
+
+@jit
+def on_maximum(obs, i, t_ev, th_ev, chi_ev, x_ev, y_ev, psi_ev, speed_ev, psid, speed):
+    """A theta maximum (thetadot turning from + to -) located at time t_ev with tilt th_ev,
+    heading chi_ev (on the branch of the observer's chi), G at (x_ev, y_ev), the path's heading
+    psi_ev and speed speed_ev there: closes the cycle that the accumulators hold (its per-cycle
+    values, the orbit centre, the chord's and the heading's turn) and starts the next with the
+    path's heading rate psid and speed at the point where the new cycle's accumulators begin."""
+    obs[O_TH_MAX, i] = max(obs[O_TH_MAX, i], th_ev)
+    if speed_ev > HEADING_SPEED_MIN:
+        if obs[O_NMAX, i] >= 1.0 and math.isfinite(obs[O_PSIL, i]):
+            # the heading turns by chi's change over a cycle, to whole turns (the reduced
+            # state repeats); chi, read at the located time near the vertical, can be off
+            # by much of its swing there: its change is taken to the nearest value that
+            # agrees with the path heading's, which is smooth
+            dchi = chi_ev - obs[O_CHIL, i]
+            dpsi = psi_ev - obs[O_PSIL, i]
+            chi_ev = obs[O_CHIL, i] + dchi + _wrap(dpsi - dchi)
+            # the heading's turn folded, summed: a chart-free net turn that, unlike
+            # the chord's, does not depend on the chord's length
+            obs[O_HD_SUM, i] += _wrap(dpsi)
+            obs[O_HD_N, i] += 1.0
+        obs[O_PSIL, i] = psi_ev
+    else:
+        obs[O_PSIL, i] = math.nan
+    if obs[O_NMAX, i] == 0.0:
+        obs[O_T1, i], obs[O_CHI1, i], obs[O_X1, i], obs[O_Y1, i] = t_ev, chi_ev, x_ev, y_ev
+    else:  # the accumulators hold one complete cycle
+        obs[O_C_PSID, i] = obs[O_A_PSID, i]
+        obs[O_C_TURN, i] = obs[O_A_TURN, i]
+        obs[O_C_VMIN, i] = obs[O_A_VMIN, i]
+        dur = t_ev - obs[O_TL, i]
+        obs[O_C_VMEAN, i] = obs[O_A_VINT, i] / dur
+        obs[O_C_WIND, i] = obs[O_A_QUART, i] / 4.0
+        obs[O_C_DUR, i] = dur
+        obs[O_C_RAW, i] = obs[O_A_RAW, i]
+        obs[O_C_NSAMP, i] = obs[O_A_NSAMP, i]
+        obs[O_XP, i], obs[O_YP, i] = obs[O_XL, i], obs[O_YL, i]
+        if math.isfinite(obs[O_RC_X, i]):  # the centre was known for the whole cycle
+            obs[O_C_RMIN, i] = obs[O_A_RMIN, i]
+            obs[O_C_RMAX, i] = obs[O_A_RMAX, i]
+        # orbit centre: fixed point of the rotation by d_chi that maps the last maximum
+        # onto this one, C = (I - R)^-1 (P_ev - R P_last)
+        dchi = chi_ev - obs[O_CHIL, i]
+        cd, sd = math.cos(dchi), math.sin(dchi)
+        bx = x_ev - (cd * obs[O_XL, i] - sd * obs[O_YL, i])
+        by = y_ev - (sd * obs[O_XL, i] + cd * obs[O_YL, i])
+        det = 2.0 * (1.0 - cd)
+        if det > 0.0:
+            obs[O_RC_X, i] = ((1.0 - cd) * bx - sd * by) / det
+            obs[O_RC_Y, i] = (sd * bx + (1.0 - cd) * by) / det
+    if obs[O_NMAX, i] >= 1.0:
+        ang = math.atan2(y_ev - obs[O_YL, i], x_ev - obs[O_XL, i])
+        if obs[O_NMAX, i] >= 2.0:
+            rot = ang - obs[O_CR_ANG, i]
+            rot -= 2.0 * math.pi * math.floor((rot + math.pi) / (2.0 * math.pi))
+            obs[O_CR_SUM, i] += rot
+            obs[O_CR_N, i] += 1.0
+        obs[O_CR_ANG, i] = ang
+    obs[O_TL, i], obs[O_CHIL, i], obs[O_XL, i], obs[O_YL, i] = t_ev, chi_ev, x_ev, y_ev
+    obs[O_NMAX, i] += 1.0
+    obs[O_A_PSID, i] = abs(psid)
+    obs[O_A_TURN, i] = 0.0
+    obs[O_A_RAW, i] = 0.0
+    obs[O_A_VMIN, i] = speed
+    obs[O_A_VINT, i] = 0.0
+    obs[O_A_QUART, i] = 0.0
+    obs[O_A_NSAMP, i] = 0.0
+    obs[O_A_RMIN, i] = math.inf
+    obs[O_A_RMAX, i] = -math.inf
+
+
+@jit
 def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, chdd, phdd, c, A, B,
             psid_in=math.nan, fric_in=math.nan, normal_in=math.nan):
     """Update launch i's slots with one sample (time t, step dt since the previous sample).
@@ -197,38 +317,7 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
     rou = routh(sth, cth, thd, chd, phd, c, A, B)
     quad = _quadrant(u, w)
     if first:
-        obs[O_TH_MIN, i] = th
-        obs[O_TH_MAX, i] = th
-        obs[O_E0, i], obs[O_J0, i], obs[O_R0, i] = e, jel, rou
-        obs[O_DE, i] = obs[O_DJ, i] = obs[O_DR, i] = 0.0
-        obs[O_FRIC, i] = fric
-        obs[O_NMIN, i] = normal
-        obs[O_NMAX, i] = 0.0
-        for k in range(O_T1, O_YP + 1):
-            obs[k, i] = math.nan
-        obs[O_A_PSID, i] = 0.0
-        obs[O_A_TURN, i] = 0.0
-        obs[O_A_VMIN, i] = speed
-        obs[O_A_VINT, i] = 0.0
-        obs[O_A_QUART, i] = 0.0
-        for k in range(O_C_PSID, O_C_DUR + 1):
-            obs[k, i] = math.nan
-        obs[O_CR_SUM, i] = 0.0
-        obs[O_CR_N, i] = 0.0
-        obs[O_CR_ANG, i] = math.nan
-        obs[O_A_RAW, i] = 0.0
-        obs[O_C_RAW, i] = math.nan
-        for k in range(O_RC_X, O_C_SIDE + 1):
-            obs[k, i] = math.nan
-        obs[O_NMIN_EV, i] = 0.0
-        obs[O_THD0, i] = abs(thd)
-        obs[O_THDD0, i] = abs(thdd)
-        obs[O_PSIL, i] = math.nan
-        obs[O_A_NSAMP, i] = 0.0
-        obs[O_HD_SUM, i] = 0.0
-        obs[O_HD_N, i] = 0.0
-        obs[O_TH_STEP, i] = 0.0
-        obs[O_C_NSAMP, i] = math.nan
+        start_record(obs, i, th, e, jel, rou, fric, normal, speed, thd, thdd)
     else:
         obs[O_TH_MIN, i] = min(obs[O_TH_MIN, i], th)
         obs[O_TH_MAX, i] = max(obs[O_TH_MAX, i], th)
@@ -265,78 +354,12 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
         if obs[O_P_THD, i] < 0.0 and thd >= 0.0:
             _, _, th_ev, _, xm, ym, _, _ = _locate(obs, i, t, x, y, sth, cth, chi, thd, chd,
                                                    phd, u, w, psid, c, A, B)
-            obs[O_TH_MIN, i] = min(obs[O_TH_MIN, i], th_ev)
-            if obs[O_NMIN_EV, i] >= 1.0:
-                obs[O_C_SIDE, i] = math.hypot(xm - obs[O_XM, i], ym - obs[O_YM, i])
-            obs[O_XM, i], obs[O_YM, i] = xm, ym
-            obs[O_NMIN_EV, i] += 1.0
+            on_minimum(obs, i, th_ev, xm, ym)
         # --- theta maximum: thetadot turns from + to - ----------------------------------------
-        pthd = obs[O_P_THD, i]
-        if pthd > 0.0 and thd <= 0.0:
+        if obs[O_P_THD, i] > 0.0 and thd <= 0.0:
             _, t_ev, th_ev, chi_ev, x_ev, y_ev, psi_ev, speed_ev = _locate(
                 obs, i, t, x, y, sth, cth, chi, thd, chd, phd, u, w, psid, c, A, B)
-            obs[O_TH_MAX, i] = max(obs[O_TH_MAX, i], th_ev)
-            if speed_ev > HEADING_SPEED_MIN:
-                if obs[O_NMAX, i] >= 1.0 and math.isfinite(obs[O_PSIL, i]):
-                    # the heading turns by chi's change over a cycle, to whole turns (the reduced
-                    # state repeats); chi, read at the located time near the vertical, can be off
-                    # by much of its swing there: its change is taken to the nearest value that
-                    # agrees with the path heading's, which is smooth
-                    dchi = chi_ev - obs[O_CHIL, i]
-                    dpsi = psi_ev - obs[O_PSIL, i]
-                    chi_ev = obs[O_CHIL, i] + dchi + _wrap(dpsi - dchi)
-                    # the heading's turn folded, summed: a chart-free net turn that, unlike
-                    # the chord's, does not depend on the chord's length
-                    obs[O_HD_SUM, i] += _wrap(dpsi)
-                    obs[O_HD_N, i] += 1.0
-                obs[O_PSIL, i] = psi_ev
-            else:
-                obs[O_PSIL, i] = math.nan
-            if obs[O_NMAX, i] == 0.0:
-                obs[O_T1, i], obs[O_CHI1, i], obs[O_X1, i], obs[O_Y1, i] = t_ev, chi_ev, x_ev, y_ev
-            else:  # the accumulators hold one complete cycle
-                obs[O_C_PSID, i] = obs[O_A_PSID, i]
-                obs[O_C_TURN, i] = obs[O_A_TURN, i]
-                obs[O_C_VMIN, i] = obs[O_A_VMIN, i]
-                dur = t_ev - obs[O_TL, i]
-                obs[O_C_VMEAN, i] = obs[O_A_VINT, i] / dur
-                obs[O_C_WIND, i] = obs[O_A_QUART, i] / 4.0
-                obs[O_C_DUR, i] = dur
-                obs[O_C_RAW, i] = obs[O_A_RAW, i]
-                obs[O_C_NSAMP, i] = obs[O_A_NSAMP, i]
-                obs[O_XP, i], obs[O_YP, i] = obs[O_XL, i], obs[O_YL, i]
-                if math.isfinite(obs[O_RC_X, i]):  # the centre was known for the whole cycle
-                    obs[O_C_RMIN, i] = obs[O_A_RMIN, i]
-                    obs[O_C_RMAX, i] = obs[O_A_RMAX, i]
-                # orbit centre: fixed point of the rotation by d_chi that maps the last maximum
-                # onto this one, C = (I - R)^-1 (P_ev - R P_last)
-                dchi = chi_ev - obs[O_CHIL, i]
-                cd, sd = math.cos(dchi), math.sin(dchi)
-                bx = x_ev - (cd * obs[O_XL, i] - sd * obs[O_YL, i])
-                by = y_ev - (sd * obs[O_XL, i] + cd * obs[O_YL, i])
-                det = 2.0 * (1.0 - cd)
-                if det > 0.0:
-                    obs[O_RC_X, i] = ((1.0 - cd) * bx - sd * by) / det
-                    obs[O_RC_Y, i] = (sd * bx + (1.0 - cd) * by) / det
-            if obs[O_NMAX, i] >= 1.0:
-                ang = math.atan2(y_ev - obs[O_YL, i], x_ev - obs[O_XL, i])
-                if obs[O_NMAX, i] >= 2.0:
-                    rot = ang - obs[O_CR_ANG, i]
-                    rot -= 2.0 * math.pi * math.floor((rot + math.pi) / (2.0 * math.pi))
-                    obs[O_CR_SUM, i] += rot
-                    obs[O_CR_N, i] += 1.0
-                obs[O_CR_ANG, i] = ang
-            obs[O_TL, i], obs[O_CHIL, i], obs[O_XL, i], obs[O_YL, i] = t_ev, chi_ev, x_ev, y_ev
-            obs[O_NMAX, i] += 1.0
-            obs[O_A_PSID, i] = abs(psid)
-            obs[O_A_TURN, i] = 0.0
-            obs[O_A_RAW, i] = 0.0
-            obs[O_A_VMIN, i] = speed
-            obs[O_A_VINT, i] = 0.0
-            obs[O_A_QUART, i] = 0.0
-            obs[O_A_NSAMP, i] = 0.0
-            obs[O_A_RMIN, i] = math.inf
-            obs[O_A_RMAX, i] = -math.inf
+            on_maximum(obs, i, t_ev, th_ev, chi_ev, x_ev, y_ev, psi_ev, speed_ev, psid, speed)
     obs[O_P_THD, i] = thd
     obs[O_P_T, i] = t
     obs[O_P_CHI, i] = chi
