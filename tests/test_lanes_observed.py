@@ -1,5 +1,5 @@
-"""DOP853 on SIMD lanes with the streaming observer (`lanes.integrate_observed`, sweep method
-"dop853").
+"""DOP853 on SIMD lanes with the step observer (`lanes.integrate_observed` with
+`classify.step_observer`, sweep method "dop853").
 
 Judged against independent integrations: the steps against `integrate_lanes` (the kernel without
 an observer), the observer's record and the labels against the fixed-step RK4 kernel in the Euler
@@ -15,7 +15,7 @@ from ballsurvey.ball import Ball
 from ballsurvey.classify import observer as ob
 from ballsurvey.classify.labels import CODE
 from ballsurvey.classify.observer import N_OBS
-from ballsurvey.compose import OBSERVER, classify, run_launches
+from ballsurvey.compose import STEP_OBSERVER, classify, run_launches
 from ballsurvey.integrate.lanes import integrate_lanes, integrate_observed
 from ballsurvey.integrate.outcome import FIXED_FRAME, NONFINITE, OK
 from ballsurvey.paper import FIGURES
@@ -38,15 +38,15 @@ def box():
     return _random_launches(300, seed=11)
 
 
-def _observed(y0, p, T_s, sample_s, **kw):
-    return integrate_observed(y0, p, T_s / TU, 1e-9, 1e-12, observer=OBSERVER, n_slots=N_OBS,
-                              sample_dt=sample_s / TU, **kw)
+def _observed(y0, p, T_s, **kw):
+    return integrate_observed(y0, p, T_s / TU, 1e-9, 1e-12, observer=STEP_OBSERVER,
+                              n_slots=N_OBS, **kw)
 
 
 def test_observed_steps_are_the_lane_kernels(box):
     # carrying the slope from one step to the next (for the interpolant) changes no bit
     y0, p = box[0][:, :40], box[1][:, :40]
-    obs = _observed(y0, p, 2.0, 4e-4)
+    obs = _observed(y0, p, 2.0)
     bare = integrate_lanes(y0, p, 2.0 / TU, 1e-9, 1e-12)
     assert (obs.outcome == OK).all() and (obs.formulation == FIXED_FRAME).all()
     assert np.array_equal(obs.traj, bare.traj)
@@ -54,10 +54,11 @@ def test_observed_steps_are_the_lane_kernels(box):
 
 
 def test_observer_record_matches_the_rk4_kernel_on_the_papers_launches():
-    """The observer sees cubic Hermite values inside DOP853 steps of h ~ 30 ms; over a theta
-    oscillation of angular frequency w ~ 10 rad/s the interpolant's error is about
-    (h w)^4 / 384 ~ 2e-5 of a variable's swing, and (h w)^3 / 72 ~ 4e-4 of a slope's: the bounds
-    below are those estimates with a factor 3-5 of room, against RK4 samples every 1e-4 s."""
+    """The step observer reads cubic Hermite interpolants of G's velocity and position inside
+    DOP853 steps of h ~ 30 ms, and locates events on quintic ones; over a theta oscillation of
+    angular frequency w ~ 10 rad/s the cubic's error is about (h w)^4 / 384 ~ 2e-5 of a
+    variable's swing, and (h w)^3 / 72 ~ 4e-4 of a slope's: the bounds below are those
+    estimates with a factor 3-5 of room, against RK4 samples every 1e-4 s."""
     names = ("fig7", "fig9a", "fig12a", "fig12b")
     f = [FIGURES[k] for k in names]
     y0 = launch_state(np.array([x["theta0_deg"] for x in f]), 0.0,
@@ -71,10 +72,14 @@ def test_observer_record_matches_the_rk4_kernel_on_the_papers_launches():
     dt_ev = 3 * 2e-5 / w_nd  # event times: value error over the rate it crosses zero at
     # theta maxima: time, heading, position at the events (interpolated between samples);
     # positions and headings move by about one unit per unit time
-    for slot, tol in ((ob.O_T1, dt_ev), (ob.O_TL, dt_ev), (ob.O_CHI1, dt_ev), (ob.O_CHIL, dt_ev),
-                      (ob.O_XL, dt_ev), (ob.O_YL, dt_ev), (ob.O_TH_MAX, 3 * 2e-5),
-                      (ob.O_TH_MIN, 3 * 2e-5)):
+    for slot, tol in ((ob.O_T1, dt_ev), (ob.O_TL, dt_ev), (ob.O_XL, dt_ev), (ob.O_YL, dt_ev),
+                      (ob.O_TH_MAX, 3 * 2e-5), (ob.O_TH_MIN, 3 * 2e-5)):
         assert np.abs(new.obs[slot] - ref.obs[slot]).max() < tol, ob.SLOTS[slot]
+    # the heading chi at the maxima, to whole turns (the step observer does not count chi's
+    # turns between maxima: the chart-free labels read the path's heading instead)
+    for slot in (ob.O_CHI1, ob.O_CHIL):
+        d = new.obs[slot] - ref.obs[slot]
+        assert np.abs(d - 2 * np.pi * np.round(d / (2 * np.pi))).max() < dt_ev, ob.SLOTS[slot]
     for slot in (ob.O_FRIC, ob.O_NMIN, ob.O_C_PSID):  # from the interpolant's slope
         assert np.allclose(new.obs[slot], ref.obs[slot], rtol=5 * 4e-4, atol=0), ob.SLOTS[slot]
     assert np.array_equal(new.obs[ob.O_NMAX], ref.obs[ob.O_NMAX])
@@ -91,7 +96,7 @@ def test_period_mode_labels_agree_with_full_rk4(box):
     y0, p = box
     ref = classify(run_launches(y0, p, StepPlan(20.0, 1e-4, TU), "rk4"),
                    BALL.flat_face_theta_rad)["label"]
-    # the headline's settings: observer every 4e-3 s, rtol 1e-9, two theta cycles
+    # the headline's settings: rtol 1e-9, two theta cycles
     res = run_launches(y0, p, StepPlan(20.0, 1e-3, TU), "dop853", cycles=2)
     lab = classify(res, BALL.flat_face_theta_rad)["label"]
     assert np.mean(lab == ref) >= 0.99
@@ -102,9 +107,9 @@ def test_period_mode_labels_agree_with_full_rk4(box):
 
 def test_observed_bit_identical_across_lanes_and_threads(box):
     y0, p = box[0][:, :50], box[1][:, :50]
-    base = _observed(y0, p, 20.0, 2e-3, stop_after=3)
+    base = _observed(y0, p, 20.0, stop_after=3)
     for kw in (dict(lanes=1), dict(lanes=7), dict(lanes=64, parallel=False)):
-        other = _observed(y0, p, 20.0, 2e-3, stop_after=3, **kw)
+        other = _observed(y0, p, 20.0, stop_after=3, **kw)
         assert np.array_equal(other.obs, base.obs, equal_nan=True), kw
         assert np.array_equal(other.traj, base.traj, equal_nan=True), kw
 
@@ -128,9 +133,9 @@ def test_observed_near_the_vertical_needs_no_fallback():
 
 def test_observed_failures_stay_in_their_lane(box):
     y0, p = box[0][:, :20].copy(), box[1][:, :20]
-    good = _observed(y0, p, 5.0, 2e-3, stop_after=3)
+    good = _observed(y0, p, 5.0, stop_after=3)
     y0[5, 4] = np.nan
-    res = _observed(y0, p, 5.0, 2e-3, stop_after=3)
+    res = _observed(y0, p, 5.0, stop_after=3)
     assert res.outcome[4] == NONFINITE
     keep = np.arange(20) != 4
     assert np.array_equal(res.obs[:, keep], good.obs[:, keep], equal_nan=True)
@@ -138,8 +143,8 @@ def test_observed_failures_stay_in_their_lane(box):
 
 def test_observed_refuses_bad_settings(box):
     y0, p = box[0][:, :2], box[1][:, :2]
-    for kw in (dict(sample_s=0.0), dict(sample_s=math.nan)):
-        with pytest.raises(ValueError, match="sample_dt"):
+    for kw in (dict(h_init=0.0), dict(h_init=math.nan)):
+        with pytest.raises(ValueError, match="h_init"):
             _observed(y0, p, 1.0, **kw)
     with pytest.raises(ValueError, match="method"):
         run_launches(y0, p, StepPlan(1.0, 1e-3, TU), "dop9")

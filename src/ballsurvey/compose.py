@@ -21,10 +21,11 @@ import numpy as np
 from .ball import flat_face_theta_of, nondim_params_of
 from .classify.labels import CODE, Thresholds, label_fields
 from .classify.observer import N_OBS, O_DE, O_E0, O_TH_MAX, O_TH_MIN, cycles_done, observe
+from .classify.step_observer import observe_start, observe_step
 from .integrate import ensemble, lanes
 from .integrate import outcome as oc
 from .integrate.adaptive import integrate_adaptive, trajectory_adaptive
-from .integrate.binding import Observer
+from .integrate.binding import Observer, StepObserver
 from .integrate.tableaus import ADAPTIVE, FIXED_STEP, LANE_ADAPTIVE
 from .units import StepPlan, fields_to_si, launch_state
 
@@ -34,6 +35,8 @@ TIMES: Counter = Counter()
 
 #: the classifier's streaming observer, as the integrators take it
 OBSERVER = Observer(record=observe, done=cycles_done)
+#: the same record from an adaptive integration's accepted steps (the map's dop853 on SIMD lanes)
+STEP_OBSERVER = StepObserver(start=observe_start, step=observe_step, done=cycles_done)
 #: methods for one trajectory (`run_trajectory`, `simulate`)
 METHODS = tuple(FIXED_STEP) + tuple(ADAPTIVE)
 #: methods for a map (`run_launches`): those, and the adaptive pairs on SIMD lanes
@@ -125,8 +128,8 @@ def run_launches(y0, params, plan: StepPlan, method="rk4", *, rtol=1e-9, atol=1e
 
     method: a fixed-step tableau (plan.n_steps steps of plan.dt_nd), "dopri5"/"adaptive" (rtol,
     atol; first trial step plan.h_init_nd) or "dop853" (the pair on SIMD lanes, in the fixed
-    frame: `lanes.integrate_observed`, with the observer sampling every observe_every * dt, as
-    it does on the fixed-step kernels, and no fallback, which it never needs). cycles > 0
+    frame: `lanes.integrate_observed`, with the step observer on each accepted step, so
+    observe_every does not apply, and no fallback, which it never needs). cycles > 0
     (period mode): each launch stops once the observer has seen that many complete theta
     cycles; T is then the longest it may run.
     fallback: launches `needs_fallback` names (with `thresholds`) are run again in the fixed
@@ -150,10 +153,10 @@ def run_launches(y0, params, plan: StepPlan, method="rk4", *, rtol=1e-9, atol=1e
                                  n_slots=N_OBS, h_init=plan.h_init_nd, parallel=parallel,
                                  tableau=ADAPTIVE[method], stop_after=stop)
     elif method in LANE_ADAPTIVE:
-        res = lanes.integrate_observed(y0, params, plan.T_nd, rtol, atol, observer=OBSERVER,
-                                       n_slots=N_OBS, sample_dt=plan.dt_nd * observe_every,
-                                       method=method, lanes=block, h_init=plan.h_init_nd,
-                                       parallel=parallel, stop_after=stop)
+        res = lanes.integrate_observed(y0, params, plan.T_nd, rtol, atol,
+                                       observer=STEP_OBSERVER, n_slots=N_OBS, method=method,
+                                       lanes=block, h_init=plan.h_init_nd, parallel=parallel,
+                                       stop_after=stop)
     else:
         raise ValueError(f"unknown method {method!r}; known: {', '.join(MAP_METHODS)}")
     t1 = time.perf_counter()

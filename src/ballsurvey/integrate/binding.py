@@ -38,6 +38,17 @@ class Observer(NamedTuple):
     done: Callable
 
 
+class StepObserver(NamedTuple):
+    """An observer fed by an adaptive integrator's steps: `start(obs, i, y, f, c, A, B)` with a
+    launch's fixed-frame state y and its rate f, `step(obs, i, t0, h, ya, fa, yb, fb, c, A, B,
+    last)` with each accepted step's start time, length, states and rates at both ends and
+    whether it is the run's last, and `done` as `Observer.done`."""
+
+    start: Callable
+    step: Callable
+    done: Callable
+
+
 def cache_dir() -> Path:
     return Path(os.environ.get("BALLSURVEY_CACHE_DIR", Path.home() / ".cache" / "ballsurvey"))
 
@@ -68,19 +79,22 @@ def inlined(fn):
     return numba.njit(inline="always", **opts)(fn.py_func)
 
 
-def bind(name: str, source: str, observer: Observer | None, *, inline_record: bool = False):
-    """The module of `source` (a template with `record` and `done` globals) bound to `observer`
-    (None: a kernel with no observer; its module is cached all the same). inline_record: numba
-    inlines the observer's `record` into the kernel (`inlined`)."""
+def bind(name: str, source: str, observer: Observer | StepObserver | None, *,
+         inline_record: bool = False):
+    """The module of `source` (a template with a global for each of the observer's functions:
+    `record` and `done`, or `start`, `step` and `done`) bound to `observer` (None: a kernel with
+    no observer; its module is cached all the same). inline_record: numba inlines the observer's
+    functions other than `done` into the kernel (`inlined`)."""
     if observer is None:
         text = source + "\n\n# no observer\n"
     else:
         if inline_record:
-            observer = Observer(record=inlined(observer.record), done=observer.done)
-        text = (source + "\n\n# observer bound by ballsurvey.integrate.binding:\n"
-                f"#   record = {_identity(observer.record)}"
-                f"{' (inlined)' if inline_record else ''}\n"
-                f"#   done = {_identity(observer.done)}\n")
+            observer = observer._replace(**{k: inlined(getattr(observer, k))
+                                            for k in observer._fields if k != "done"})
+        text = source + "\n\n# observer bound by ballsurvey.integrate.binding:\n" + "".join(
+            f"#   {k} = {_identity(getattr(observer, k))}"
+            f"{' (inlined)' if inline_record and k != 'done' else ''}\n"
+            for k in observer._fields)
     digest = hashlib.sha256(f"{text}\0{SOURCE_DIGEST}".encode()).hexdigest()[:16]
     modname = f"ballsurvey_{name}_{digest}"
     if modname in _MODULES:
@@ -101,10 +115,12 @@ def bind(name: str, source: str, observer: Observer | None, *, inline_record: bo
     except OSError:  # read-only home: compile in memory, without the on-disk cache
         mod = type(sys)(modname)
         if observer is not None:
-            mod.record, mod.done = observer.record, observer.done
+            for k in observer._fields:
+                setattr(mod, k, getattr(observer, k))
         exec(compile(text.replace("cache=True", "cache=False"), f"<{modname}>", "exec"),
              mod.__dict__)
     if observer is not None:
-        mod.record, mod.done = observer.record, observer.done
+        for k in observer._fields:
+            setattr(mod, k, getattr(observer, k))
     _MODULES[modname] = mod
     return mod

@@ -33,7 +33,7 @@ import numpy as np
 from .._jit import njit
 from ..physics import fixed
 from ..physics.fast import N_FAST, fast_from_fixed_into, fixed_from_fast_into
-from .binding import Observer, bind
+from .binding import StepObserver, bind
 from .ensemble import refill_groups
 from .outcome import FIXED_FRAME, OK, Result
 from .tableaus import LANE_ADAPTIVE, LaneTableau
@@ -176,7 +176,7 @@ _TRIAL_LOOP = """        for i in range(m):
 {select}
             tl[i] = (T if last else tt + hh) if ok else tt
             hl[i] = (hh * fac if ok else -(hh * fac)) if on else hl[i]
-        for i in range(m):
+{after_trial}        for i in range(m):
             if t_prev[i] < T:  # the lane was on
                 ntry[i] += 1
                 if hl[i] > 0.0:
@@ -233,7 +233,7 @@ def kernel_module_source(tab: LaneTableau) -> str:
                           nv=NV)
     body = _TEMPLATE.format(
         load="\n".join(f"    r{q} = v0[{q}, lo:hi].copy()" for q in v),
-        trial_loop=_TRIAL_LOOP.format(trial=trial, select=select, on_accept=""),
+        trial_loop=_TRIAL_LOOP.format(trial=trial, select=select, after_trial="", on_accept=""),
         finite=" + ".join(f"r{q}[i]" for q in v),
         store="\n".join(f"        v_end[{q}, lo + i] = r{q}[i]" for q in v))
     return _header() + body
@@ -241,7 +241,7 @@ def kernel_module_source(tab: LaneTableau) -> str:
 
 _OBSERVED = """
 @njit(nogil=True, error_model='numpy', cache=True)
-def run_group(u0, params, T, rtol, atol, h0, max_steps, ds, lo, hi, lanes, stop_after, obs, v_end,
+def run_group(u0, params, T, rtol, atol, h0, max_steps, lo, hi, lanes, stop_after, obs, v_end,
               n_acc_out, status_out, t_out):
     # launches lo..hi-1 through `lanes` lanes: a lane whose launch ends takes the next at once
     m = min(lanes, hi - lo)
@@ -260,16 +260,15 @@ def run_group(u0, params, T, rtol, atol, h0, max_steps, ds, lo, hi, lanes, stop_
     idx = np.full(m, -1, dtype=np.int64)
     nacc = np.zeros(m, dtype=np.int64)
     ntry = np.zeros(m, dtype=np.int64)
-    nsamp = np.zeros(m, dtype=np.int64)
-    tseen = np.zeros(m)
-    echi = np.zeros(m)
-    echd = np.zeros(m)
     n_obs = obs.shape[0]
     obs_l = np.full((n_obs, m), np.nan)
     ev = np.empty(N_FAST)
-    ek = np.empty(N_FAST)
     vv = np.empty(NV)
     dv = np.empty(NV)
+    ya = np.empty(NV)
+    fa = np.empty(NV)
+    yb = np.empty(NV)
+    fb = np.empty(NV)
     pp = np.empty(3)
     nxt = lo
     active = 0
@@ -289,16 +288,9 @@ def run_group(u0, params, T, rtol, atol, h0, max_steps, ds, lo, hi, lanes, stop_
                 s0 = ({tuple_vv})
                 k0 = rhs_tuple(s0, pp[0], pp[1], pp[2])
 {load}
-                fast_rhs_into(ev, pp, ek)
-                for q in range(n_obs):
-                    obs_l[q, i] = np.nan
-                record(obs_l, i, True, 0.0, 0.0, ev[0], ev[1], ev[2], ev[8], ev[9], ev[3],
-                       ev[5], ev[6], ev[7], ek[5], ek[6], ek[7], pp[0], pp[1], pp[2],
-                       math.nan, math.nan, math.nan)
-                echi[i] = ev[S_CHI]
-                echd[i] = ev[S_CHD]
-                tseen[i] = 0.0
-                nsamp[i] = 1
+                for q in range(NV):
+                    dv[q] = k0[q]
+                start(obs_l, i, vv, dv, pp[0], pp[1], pp[2])
                 tl[i] = 0.0
                 hl[i] = min(max(h0, 1e3 * floor), T)
                 nacc[i] = 0
@@ -312,7 +304,8 @@ def run_group(u0, params, T, rtol, atol, h0, max_steps, ds, lo, hi, lanes, stop_
 {keep}
         # one trial step on every lane, run_block's
 {trial_loop}
-        # samples inside each accepted step (cubic Hermite), checks, and finished launches
+        # the observer on each accepted step (its two ends and slopes), checks, and finished
+        # launches
         for i in range(m):
             if idx[i] < 0:
                 continue
@@ -326,42 +319,11 @@ def run_group(u0, params, T, rtol, atol, h0, max_steps, ds, lo, hi, lanes, stop_
                 elif ntry[i] >= max_steps:
                     status = STEP_BUDGET
             if status == 0 and tl[i] > t_prev[i]:
-                h = tl[i] - t_prev[i]
-                while True:
-                    ts = nsamp[i] * ds
-                    if ts > tl[i]:
-                        if tl[i] >= T and tseen[i] < T:
-                            ts = T  # the run's end is a sample too
-                        else:
-                            break
-                    u = (ts - t_prev[i]) / h
-                    u2 = u * u
-                    w00 = (2.0 * u - 3.0) * u2 + 1.0
-                    w01 = 1.0 - w00
-                    w10 = ((u - 2.0) * u + 1.0) * u * h
-                    w11 = (u - 1.0) * u2 * h
-                    d01 = 6.0 * u * (1.0 - u) / h
-                    d10 = (3.0 * u - 4.0) * u + 1.0
-                    d11 = (3.0 * u - 2.0) * u
-{interp}
-                    dq = ts - tseen[i]
-                    seen, th, ch, thd, chd, phd, sth, cth = euler_view_scalars(
-                        vv, echi[i] + dq * echd[i])
-                    if seen and cth > VIEW_MIN_COS:
-                        psid, fric, normal = path_kinematics(vv, dv, pc[i])
-                        # psid, fric and normal come from the fixed frame: the observer does
-                        # not read the Euler accelerations then
-                        record(obs_l, i, False, ts, dq, vv[0], vv[1], th, sth, cth, ch, thd, chd,
-                               phd, 0.0, 0.0, 0.0, pc[i], pa[i], pb[i], psid, fric, normal)
-                        echi[i] = ch
-                        echd[i] = chd
-                        tseen[i] = ts
-                        if stop_after > 0 and done(obs_l, i, stop_after):
-                            finished = True
-                            break
-                    if ts >= T:
-                        break
-                    nsamp[i] += 1
+{ends}
+                step(obs_l, i, t_prev[i], tl[i] - t_prev[i], ya, fa, yb, fb, pc[i], pa[i], pb[i],
+                     tl[i] >= T)
+                if stop_after > 0 and done(obs_l, i, stop_after):
+                    finished = True
             if status != 0 or finished or tl[i] >= T:
                 j = idx[i]
                 for q in range(n_obs):
@@ -376,40 +338,35 @@ def run_group(u0, params, T, rtol, atol, h0, max_steps, ds, lo, hi, lanes, stop_
 
 
 @njit(parallel=True, nogil=True, error_model='numpy', cache=True)
-def run_parallel(u0, params, T, rtol, atol, h0, max_steps, ds, lanes, groups, stop_after, obs,
+def run_parallel(u0, params, T, rtol, atol, h0, max_steps, lanes, groups, stop_after, obs,
                  v_end, n_acc, status, t_out):
     n = u0.shape[1]
     size = (n + groups - 1) // groups
     for g in nb.prange(groups):
         lo = g * size
         if lo < n:
-            run_group(u0, params, T, rtol, atol, h0, max_steps, ds, lo, min(n, lo + size), lanes,
+            run_group(u0, params, T, rtol, atol, h0, max_steps, lo, min(n, lo + size), lanes,
                       stop_after, obs, v_end, n_acc, status, t_out)
 
 
 @njit(nogil=True, error_model='numpy', cache=True)
-def run_serial(u0, params, T, rtol, atol, h0, max_steps, ds, lanes, groups, stop_after, obs,
+def run_serial(u0, params, T, rtol, atol, h0, max_steps, lanes, groups, stop_after, obs,
                v_end, n_acc, status, t_out):
-    run_group(u0, params, T, rtol, atol, h0, max_steps, ds, 0, u0.shape[1], lanes, stop_after,
+    run_group(u0, params, T, rtol, atol, h0, max_steps, 0, u0.shape[1], lanes, stop_after,
               obs, v_end, n_acc, status, t_out)
 """
 
 _OBSERVED_HEADER = """
 from ballsurvey.integrate.outcome import NONFINITE, STEP_BUDGET, STEP_UNDERFLOW
-from ballsurvey.physics.fast import N_FAST, S_CHD, S_CHI, fast_rhs_into, fixed_from_fast_into
-from ballsurvey.physics.fixed import euler_view_scalars, path_kinematics
+from ballsurvey.physics.fast import N_FAST, fixed_from_fast_into
 
 NV = {nv!r}
-VIEW_MIN_COS = {view_min_cos!r}
 
-# the observer, handed in by ballsurvey.integrate.binding.bind before anything is compiled
-record = None
+# the step observer, handed in by ballsurvey.integrate.binding.bind before anything is compiled
+start = None
+step = None
 done = None
 """
-
-#: cos theta at or below which a sample's Euler view is not shown to the observer (the chart is
-#: degenerate at the vertical; the next sample's interval spans the gap)
-VIEW_MIN_COS = 1e-6
 
 
 def observed_module_source(tab: LaneTableau) -> str:
@@ -420,16 +377,19 @@ def observed_module_source(tab: LaneTableau) -> str:
     ind = " " * 12
     stages, norms, select = _step_parts(tab, ind, "rhs_tuple(s0, c, A, B)")
     keep = "\n".join(f"{ind}o{q}[i] = r{q}[i]" for q in v)
-    # an accepted step's slopes: at its start (the last one's end) and at its end
-    on_accept = (" " * 20 + "kn = rhs_tuple((" + ", ".join(f"r{q}[i]" for q in v)
-                 + "), pc[i], pa[i], pb[i])\n"
-                 + "\n".join(f"{' ' * 20}g{q}[i] = f{q}[i]\n{' ' * 20}f{q}[i] = kn[{q}]"
-                              for q in v))
-    ind5 = " " * 20
-    interp = "\n".join(
-        f"{ind5}vv[{q}] = w00 * o{q}[i] + w01 * r{q}[i] + w10 * g{q}[i] + w11 * f{q}[i]\n"
-        f"{ind5}dv[{q}] = d01 * (r{q}[i] - o{q}[i]) + d10 * g{q}[i] + d11 * f{q}[i]"
-        for q in v)
+    # an accepted step's slopes, at its start (the last one's end) and at its end, in a loop of
+    # their own over every lane (a select keeps a rejected lane's): LLVM vectorises it, where
+    # one right-hand side per accepted step in the counters' loop would stay scalar
+    ind3 = " " * 12
+    after_trial = (
+        "        for i in range(m):  # the slope at each lane's new state\n"
+        f"{ind3}kn = rhs_tuple((" + ", ".join(f"r{q}[i]" for q in v) + "), pc[i], pa[i], pb[i])\n"
+        f"{ind3}acc = (t_prev[i] < T) & (hl[i] > 0.0)\n"
+        + "".join(f"{ind3}g{q}[i] = f{q}[i] if acc else g{q}[i]\n"
+                  f"{ind3}f{q}[i] = kn[{q}] if acc else f{q}[i]\n" for q in v))
+    ind4 = " " * 16
+    ends = "\n".join(f"{ind4}ya[{q}] = o{q}[i]\n{ind4}fa[{q}] = g{q}[i]\n"
+                     f"{ind4}yb[{q}] = r{q}[i]\n{ind4}fb[{q}] = f{q}[i]" for q in v)
     body = _OBSERVED.format(
         alloc="\n".join(f"    r{q} = np.zeros(m)\n    f{q} = np.zeros(m)\n    o{q} = np.zeros(m)"
                         f"\n    g{q} = np.zeros(m)" for q in v),
@@ -439,11 +399,11 @@ def observed_module_source(tab: LaneTableau) -> str:
         trial_loop=_TRIAL_LOOP.format(
             trial=_TRIAL.format(tuple_r=", ".join(f"r{q}[i]" for q in v), stages=stages,
                                 norms=norms, nv=NV),
-            select=select, on_accept=on_accept),
+            select=select, after_trial=after_trial, on_accept=""),
         keep=keep,
-        finite=" + ".join(f"r{q}[i]" for q in v), interp=interp,
+        finite=" + ".join(f"r{q}[i]" for q in v), ends=ends,
         store="\n".join(f"                v_end[{q}, j] = r{q}[i]" for q in v))
-    return (_header() + _OBSERVED_HEADER.format(nv=NV, view_min_cos=VIEW_MIN_COS) + body)
+    return _header() + _OBSERVED_HEADER.format(nv=NV) + body
 
 
 jit = njit(cache=True, nogil=True, error_model="numpy")  # stamped cache: _jit.py
@@ -529,9 +489,9 @@ def integrate_lanes(y0, params, T, rtol=1e-9, atol=1e-12, *, method="dop853", bl
 
 
 @cache
-def make_observed_kernels(method: str, observer: Observer):
+def make_observed_kernels(method: str, observer: StepObserver):
     """(run_parallel, run_serial) of the observed lane kernel for a pair named in LANE_ADAPTIVE,
-    bound to `observer` (`binding.bind`)."""
+    bound to the step observer `observer` (`binding.bind`)."""
     if method not in LANE_ADAPTIVE:
         raise ValueError(f"unknown lane method {method!r}; known: {', '.join(LANE_ADAPTIVE)}")
     mod = bind(f"lanes_obs_{method}", observed_module_source(LANE_ADAPTIVE[method]), observer,
@@ -539,14 +499,13 @@ def make_observed_kernels(method: str, observer: Observer):
     return mod.run_parallel, mod.run_serial
 
 
-def integrate_observed(y0, params, T, rtol=1e-9, atol=1e-12, *, observer: Observer, n_slots: int,
-                       sample_dt: float, method="dop853", lanes=64, h_init=1e-3,
+def integrate_observed(y0, params, T, rtol=1e-9, atol=1e-12, *, observer: StepObserver,
+                       n_slots: int, method="dop853", lanes=64, h_init=1e-3,
                        max_steps=10_000_000, parallel=True, stop_after=0) -> Result:
-    """`integrate_lanes` with a streaming observer: the observer sees each launch at t = 0 and
-    then at every multiple of sample_dt (and at T), the state there taken from the cubic Hermite
-    interpolant of the accepted step that holds it (state and slope at both ends), in the Euler
-    view with the path's heading rate, |F_h|/N and N/(M g) from the fixed frame. Samples where
-    the axis is within VIEW_MIN_COS of vertical are skipped.
+    """`integrate_lanes` with a step observer: `observer.start` sees each launch's fixed-frame
+    state and rate at t = 0, `observer.step` each accepted step (its start time and length, the
+    states and rates at both ends: what the step's cubic Hermite interpolant is made of), so the
+    observer's cost follows the steps.
 
     Lanes refill from a queue: a lane whose launch reaches T, fails, or (stop_after > 0, period
     mode) has `observer.done(obs, i, stop_after)` takes the next launch at once. Each launch's
@@ -555,8 +514,8 @@ def integrate_observed(y0, params, T, rtol=1e-9, atol=1e-12, *, observer: Observ
     t_stop (time reached where the run failed), formulation FIXED_FRAME, y_end (Euler view of
     the last state, principal branches), n_steps accepted, traj the last fixed-frame state."""
     y0, params, n = _checked(y0, params, T, rtol, atol)
-    if not (0.0 < h_init < math.inf and 0.0 < sample_dt < math.inf):
-        raise ValueError(f"h_init and sample_dt must be finite and > 0, got {h_init}, {sample_dt}")
+    if not (0.0 < h_init < math.inf):
+        raise ValueError(f"h_init must be finite and > 0, got {h_init}")
     obs = np.full((max(int(n_slots), 1), n), np.nan)
     v_end = np.full((NV, n), np.nan)
     n_acc = np.zeros(n, dtype=np.int64)
@@ -567,8 +526,8 @@ def integrate_observed(y0, params, T, rtol=1e-9, atol=1e-12, *, observer: Observ
     groups = refill_groups(n, lanes, parallel)
     if n > 0:
         (par if parallel else ser)(y0, params, float(T), float(rtol), float(atol), float(h_init),
-                                   int(max_steps), float(sample_dt), lanes, groups,
-                                   int(stop_after), obs, v_end, n_acc, status, t_end)
+                                   int(max_steps), lanes, groups, int(stop_after), obs, v_end,
+                                   n_acc, status, t_end)
     y_end = np.full((N_FAST, n), np.nan)
     fast_columns(v_end, y_end)
     return Result(obs=obs[:n_slots], outcome=status,

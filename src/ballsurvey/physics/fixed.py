@@ -108,22 +108,50 @@ def centre_velocity(v, c):
 
 
 @jit
-def path_kinematics(v, dv, c):
-    """Heading rate of the path, |F_h|/N and N/(M g) from a fixed-frame state and its rate,
-    with no Euler chart: v_G = w x s, a_G = wdot x s + w x (c w x e), N / (M g) = 1 + a_G,z."""
+def centre_acceleration(v, dv, c):
+    """(a_x, a_y, e_z'') from a fixed-frame state and its rate: G's horizontal acceleration
+    a_G = wdot x s + c w x edot and the axis's vertical acceleration e_z'' = (wdot x e + w x
+    edot)_z; G's vertical acceleration is c e_z'' (z_G = 1 + c e_z), so N / (M g) = 1 + c e_z''."""
     ex, ey, ez = v[EX], v[EY], v[EZ]
     wx, wy, wz = v[WX], v[WY], v[WZ]
     sx, sy, sz = c * ex, c * ey, c * ez + 1.0
-    vx, vy = centre_velocity(v, c)
     edx, edy, edz = dv[EX], dv[EY], dv[EZ]
     ax = (dv[WY] * sz - dv[WZ] * sy) + c * (wy * edz - wz * edy)
     ay = (dv[WZ] * sx - dv[WX] * sz) + c * (wz * edx - wx * edz)
-    az = (dv[WX] * sy - dv[WY] * sx) + c * (wx * edy - wy * edx)
+    ezdd = (dv[WX] * ey - dv[WY] * ex) + (wx * edy - wy * edx)
+    return ax, ay, ezdd
+
+
+@jit
+def path_kinematics(v, dv, c):
+    """Heading rate of the path, |F_h|/N and N/(M g) from a fixed-frame state and its rate,
+    with no Euler chart: v_G = w x s, a_G = wdot x s + w x (c w x e), N / (M g) = 1 + a_G,z."""
+    vx, vy = centre_velocity(v, c)
+    ax, ay, ezdd = centre_acceleration(v, dv, c)
     v2 = vx * vx + vy * vy
     psid = (vx * ay - vy * ax) / v2 if v2 > 0.0 else 0.0
-    normal = 1.0 + az
+    normal = 1.0 + c * ezdd
     fric = math.sqrt(ax * ax + ay * ay) / normal if normal > 0.0 else math.inf
     return psid, fric, normal
+
+
+@jit
+def invariants(v, dv, c, A, B):
+    """(energy, Jellett, Routh) of a fixed-frame state, non-dimensional, with G's velocity read
+    from the state's rate dv (x', y', and c e_z' vertically): E = rotational + translational +
+    potential (1 + c e_z); Jellett's J = L_G . r_GP = -L_G . s with L_G = A w + (B - A)(e.w) e;
+    Routh's (e.w) sqrt(A B + A |e_h|^2 + B (e_z + c)^2). The same integrals as the Euler forms in
+    `euler.py` (there sin theta = -e_z, omega_eta = e.w)."""
+    ex, ey, ez = v[EX], v[EY], v[EZ]
+    wx, wy, wz = v[WX], v[WY], v[WZ]
+    ew = ex * wx + ey * wy + ez * wz
+    ww = wx * wx + wy * wy + wz * wz
+    vx, vy, vz = dv[FX], dv[FY], c * dv[EZ]
+    e = 0.5 * (A * (ww - ew * ew) + B * ew * ew + vx * vx + vy * vy + vz * vz) + 1.0 + c * ez
+    jel = -(A * (c * ew + wz) + (B - A) * ew * (c + ez))
+    eh2 = ex * ex + ey * ey
+    rou = ew * math.sqrt(A * B + A * eh2 + B * (ez + c) * (ez + c))
+    return e, jel, rou
 
 
 @jit

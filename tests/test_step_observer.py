@@ -1,0 +1,131 @@
+"""The step observer (`classify.step_observer`): the observer's record from each accepted step of
+the DOP853 lanes, judged against independent computations: the Euler forms of the invariants,
+finite differences of an integrated trajectory, and the sampling observer on fixed-step RK4 in
+the Euler form (another method, another formulation, samples every 1e-4 s)."""
+import math
+
+import numpy as np
+import pytest
+
+from ballsurvey.ball import Ball
+from ballsurvey.classify.labels import CODE, SHAPES, Thresholds
+from ballsurvey.compose import classify, run_launches
+from ballsurvey.physics import euler, fixed
+from ballsurvey.units import StepPlan, launch_state
+
+BALL = Ball.paper()
+TU = BALL.time_unit
+P = BALL.nondim_params()
+
+
+def _random_fixed_states(n, seed):
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(n):
+        u = np.zeros(euler.N_EULER)
+        u[euler.TH] = rng.uniform(-1.2, 1.45)
+        u[euler.CHI] = rng.uniform(-math.pi, math.pi)
+        u[euler.PHI] = rng.uniform(-math.pi, math.pi)
+        u[euler.THD], u[euler.CHD], u[euler.PHD] = rng.normal(0.0, 0.8, 3)
+        out.append((u, fixed.euler_to_fixed(u)))
+    return out
+
+
+def test_fixed_frame_invariants_equal_the_euler_forms():
+    c, A, B = P
+    for u, v in _random_fixed_states(50, seed=3):
+        dv = np.empty(fixed.N_FIXED)
+        fixed.rhs(v, P, dv)
+        e, j, r = fixed.invariants(v, dv, c, A, B)
+        sth, cth = math.sin(u[euler.TH]), math.cos(u[euler.TH])
+        args = (sth, cth, u[euler.THD], u[euler.CHD], u[euler.PHD], c, A, B)
+        assert e == pytest.approx(euler.energy(*args), rel=1e-12, abs=1e-12)
+        assert j == pytest.approx(euler.jellett(*args), rel=1e-12, abs=1e-12)
+        assert r == pytest.approx(euler.routh(*args), rel=1e-12, abs=1e-12)
+
+
+def _rk4(v, h, n):
+    """n classical RK4 steps of the fixed-frame form (a reference independent of the code under
+    test)."""
+    k = [np.empty(fixed.N_FIXED) for _ in range(4)]
+    for _ in range(n):
+        fixed.rhs(v, P, k[0])
+        fixed.rhs(v + 0.5 * h * k[0], P, k[1])
+        fixed.rhs(v + 0.5 * h * k[1], P, k[2])
+        fixed.rhs(v + h * k[2], P, k[3])
+        v = v + h / 6.0 * (k[0] + 2 * k[1] + 2 * k[2] + k[3])
+    return v
+
+
+def test_centre_acceleration_is_the_rate_of_the_centre_velocity():
+    # a_G and e_z'' against central differences of x', y' and e_z' along an integrated path
+    c = P[0]
+    d = 1e-4
+    for _, v in _random_fixed_states(20, seed=5):
+        rates = []
+        for s in (-1, 1):
+            w = _rk4(v.copy(), s * d / 10, 10)
+            dw = np.empty(fixed.N_FIXED)
+            fixed.rhs(w, P, dw)
+            rates.append(dw)
+        dv = np.empty(fixed.N_FIXED)
+        fixed.rhs(v, P, dv)
+        ax, ay, ezdd = fixed.centre_acceleration(v, dv, c)
+        num = (rates[1] - rates[0]) / (2 * d)
+        scale = 1.0 + np.abs(num[[fixed.FX, fixed.FY, fixed.EZ]]).max()
+        assert abs(ax - num[fixed.FX]) < 1e-6 * scale
+        assert abs(ay - num[fixed.FY]) < 1e-6 * scale
+        assert abs(ezdd - num[fixed.EZ]) < 1e-6 * scale
+
+
+@pytest.fixture(scope="module")
+def box_pair():
+    """300 launches of the headline map's box in period mode: the sampling observer on RK4 at
+    dt = 1e-4 s (every step), and the step observer on the DOP853 lanes at rtol 1e-9."""
+    rng = np.random.default_rng(21)
+    n = 300
+    y0 = launch_state(rng.uniform(-20, 60, n), 0.0, rng.uniform(-12, 12, n),
+                      rng.uniform(-8, 8, n), TU)
+    p = np.repeat(P[:, None], n, 1)
+    ref = classify(run_launches(y0, p, StepPlan(20.0, 1e-4, TU), "rk4", observe_every=1,
+                                cycles=2), BALL.flat_face_theta_rad)
+    new = classify(run_launches(y0, p, StepPlan(20.0, 1e-3, TU), "dop853", cycles=2),
+                   BALL.flat_face_theta_rad)
+    return ref, new
+
+
+def test_step_observer_labels_and_fields_match_dense_rk4(box_pair):
+    ref, new = box_pair
+    assert np.array_equal(ref["label"], new["label"])
+    shaped = np.isin(ref["label"], [CODE[w] for w in SHAPES])
+    assert shaped.sum() > 200
+    # figures the labels are built from, over launches with a shape. Bounds: the cubic
+    # interpolant's error over DOP853 steps of ~30 ms (about 2e-5 of a swing; see
+    # test_lanes_observed), and, for the sampled extremes, RK4's own samples every 1e-4 s
+    both = shaped & np.isfinite(ref["turn_per_cycle_deg"])
+    assert np.abs(new["turn_per_cycle_deg"] - ref["turn_per_cycle_deg"])[both].max() < 1e-3
+    assert np.abs(new["theta_max_deg"] - ref["theta_max_deg"])[shaped].max() < 1e-4
+    assert np.abs(new["theta_min_deg"] - ref["theta_min_deg"])[shaped].max() < 1e-4
+    assert np.abs(new["roundness"] - ref["roundness"])[shaped].max() < 2e-3
+    # the period: DOP853's own error at rtol 1e-9 bounds it (against the quadrature, 7e-7
+    # relative on these launches, as with the sampling observer on the same steps; RK4 at
+    # dt = 1e-4 s is within 2e-8)
+    assert np.allclose(new["theta_period_s"][shaped], ref["theta_period_s"][shaped], rtol=2e-6)
+    assert np.allclose(new["chord_m"][shaped], ref["chord_m"][shaped], rtol=1e-4, atol=1e-6)
+    # the corner: its kind, its sharpness (peak over mean heading rate) and loops per cycle
+    assert np.array_equal(new["corner_kind"][shaped], ref["corner_kind"][shaped])
+    assert np.array_equal(new["loops_per_cycle"][shaped], ref["loops_per_cycle"][shaped])
+    # sharpness decides `star` against a threshold of 4: close where it is near it, and on the
+    # same side everywhere (at a near-cusp the peak rate is huge and ill-conditioned: the speed
+    # nearly vanishes there)
+    a, b = new["corner_sharpness"][shaped], ref["corner_sharpness"][shaped]
+    near = b < 2 * Thresholds().star_sharpness_min
+    assert np.allclose(a[near], b[near], rtol=2e-2)
+    assert np.array_equal(a >= Thresholds().star_sharpness_min,
+                          b >= Thresholds().star_sharpness_min)
+    # the forces the validity checks read (at step ends only: the peaks between them are
+    # missed by at most the interpolant's slope error, a few 1e-4)
+    assert np.allclose(new["max_friction_ratio"], ref["max_friction_ratio"], rtol=3e-3)
+    assert np.allclose(new["min_normal_force_ratio"], ref["min_normal_force_ratio"], rtol=3e-3)
+    # and enough points a cycle to pass the sampling floor: three a step
+    assert (new["samples_per_cycle"][shaped] >= 20).all()
