@@ -340,8 +340,8 @@ variables = ["label", "n_sides"]
 """
 
 
-#: the headline map's method and observer sample spacing (dt * observe_every) by method: RK4's
-#: step, or DOP853's tolerance and first trial step
+#: the headline map's settings by method: RK4's step and observer sample spacing
+#: (dt * observe_every), or DOP853's tolerance and first trial step (its observer reads each step)
 HEADLINE_RUN = {"rk4": dict(dt=2e-4, observe_every=4, rtol=1e-9),
                 "dop853": dict(dt=1e-3, observe_every=4, rtol=1e-9)}
 
@@ -410,7 +410,8 @@ def run_headline(n: int = 100, T: float = 20.0, method: str = "dop853", dt: floa
     how = (f"{method} at dt = {dt} s" if method in FIXED_STEP
            else f"{method} at rtol {run['rtol']:g}")
     out(f"ballsurvey headline: {n}^3 = {n ** 3} launches, T = {T} s, period mode (2 cycles), "
-        f"{how}, observer every {dt * run['observe_every']:g} s, "
+        f"{how}, " + (f"observer every {dt * run['observe_every']:g} s, "
+                      if method in FIXED_STEP else "observer on each step, ") +
         f"{numba.get_num_threads()} numba threads" + (", on the GPU" if backend == "cuda" else ""))
     threads = numba.get_num_threads()
     out(f"  wall time {wall:.1f} s ({n ** 3 / wall:.0f} launches/s), CPU use "

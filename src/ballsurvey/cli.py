@@ -359,7 +359,8 @@ def sweep_summary(path, n_launches: int, report: dict) -> str:
                                                                      else "")]
     if sparse:
         lines.append(f"  unresolved for too few observer samples per theta cycle (under "
-                     f"{floor:g}): {sparse}; lower [run] dt or observe_every")
+                     f"{floor:g}): {sparse}; lower [run] dt or observe_every (fixed step) or "
+                     f"rtol (dop853)")
     if fallback is not None:
         lines.append(f"  integrated again in the fixed frame (near the vertical): {fallback}")
     best = next((w for w in ("square", "triangle", "ngon", "star", "circle")
@@ -879,8 +880,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="instead: an N^3 period-mode map (N = 100 when not given) with label "
                         "agreement against full integration on 1000 random launches")
     b.add_argument("--method", choices=("dop853", "rk4"), default=None,
-                   help="--headline: the map's method (dop853: rtol 1e-9, samples every 4 ms; "
-                        "rk4: dt 2e-4 s, samples every 0.8 ms; default: dop853, rk4 with "
+                   help="--headline: the map's method (dop853: rtol 1e-9, the observer on each "
+                        "step; rk4: dt 2e-4 s, samples every 0.8 ms; default: dop853, rk4 with "
                         "--backend cuda)")
     b.add_argument("--period", type=int, metavar="N",
                    help="instead: period mode against full integration on an N x N map, the "

@@ -261,7 +261,7 @@ def run_group(u0, params, T, rtol, atol, h0, max_steps, lo, hi, lanes, stop_afte
     nacc = np.zeros(m, dtype=np.int64)
     ntry = np.zeros(m, dtype=np.int64)
     n_obs = obs.shape[0]
-    obs_l = np.full((n_obs, m), np.nan)
+    obs_l = np.full((m, n_obs), np.nan).T  # each lane's slots side by side in memory
     ev = np.empty(N_FAST)
     vv = np.empty(NV)
     dv = np.empty(NV)
