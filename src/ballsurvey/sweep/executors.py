@@ -10,7 +10,7 @@ import logging
 import time
 from contextlib import contextmanager
 
-from ..compose import warm_up
+from ..compose import TIMES, warm_up
 from ..limits import RunError
 from .compute import compute_chunk, concat, n_launches
 from .provenance import code_digest
@@ -68,26 +68,35 @@ def run_embedded(spec: Spec, chunks: list, todo: list, finished, *, partials=Non
 
 
 def _warm_worker() -> str:
-    """On a dask worker: one numba thread (workers are single-threaded), kernels compiled once;
-    returns the digest of the worker's code (`provenance.code_digest`)."""
+    """On a dask worker: one numba thread (workers are single-threaded), kernels compiled once,
+    the worker's kernel times (`compose.TIMES`) from zero; returns the digest of the worker's
+    code (`provenance.code_digest`)."""
     import numba
 
     from . import provenance
 
     numba.set_num_threads(1)
     warm_up()
+    TIMES.clear()
     return provenance.code_digest()
 
 
+def _worker_times() -> dict:
+    """On a dask worker: its kernel times (s) by phase since `_warm_worker`."""
+    return dict(TIMES)
+
+
 def run_dask(client, spec: Spec, chunks: list, todo: list, finished, wait_s: float, *,
-             partials=None, on_task=None) -> None:
+             partials=None, on_task=None, report: dict | None = None) -> None:
     """Chunks on a dask cluster, in tasks of `task_ranges`; on_task(n) as each task's n launches
     come back (progress), finished(k, result) once all of chunk k's tasks are back. partials:
     {k: results of chunk k's first launches} kept from an interrupted run (not computed again).
     A scheduler lost, or no worker, for longer than wait_s ends the run with RunError (finished
     chunks are saved as they come). On Ctrl-C or RunError the exception carries `prefixes`:
     {k: results of chunk k's first launches, its partial and the tasks back in a row from it},
-    for the caller to save as partial parts."""
+    for the caller to save as partial parts. report: a dict given a finished run's
+    'workers_start_s' (the workers' first call: imports, kernels loaded), 'n_workers' and
+    'worker_times' ({phase: kernel seconds summed over the workers}, as `compose.TIMES`)."""
     from concurrent.futures import CancelledError
 
     from distributed import as_completed
@@ -98,7 +107,9 @@ def run_dask(client, spec: Spec, chunks: list, todo: list, finished, wait_s: flo
     lost = (CancelledError, CommClosedError, KilledWorker, OSError, TimeoutError)
     resume_hint = "finished chunks are kept: run again with --resume"
     try:
+        t_warm = time.perf_counter()
         codes = client.run(_warm_worker)
+        t_warm = time.perf_counter() - t_warm
         other = {w: c for w, c in codes.items() if c != code_digest()}
         if other:
             w, c = next(iter(other.items()))
@@ -191,6 +202,16 @@ def run_dask(client, spec: Spec, chunks: list, todo: list, finished, wait_s: flo
     finally:
         for fut in futs:
             fut.release()
+    if report is not None:
+        try:
+            times = client.run(_worker_times)
+        except lost:  # the map is whole: only the account of where the time went is missing
+            return
+        total: dict = {}
+        for worker_times in times.values():
+            for phase, s in worker_times.items():
+                total[phase] = total.get(phase, 0.0) + s
+        report.update(workers_start_s=t_warm, n_workers=len(times), worker_times=total)
 
 
 def _ignore_interrupts_plugin():

@@ -1,0 +1,90 @@
+"""`ballsurvey bench --scaling`: the headline map as fresh sweep processes on 1 thread, on threads
+and on dask workers; the fixed cost per process and each run's wall, kernels and rest; identical
+maps. Printed structure and arithmetic only: timings on a shared machine are not asserted."""
+import importlib.util
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+HAS_DASK = importlib.util.find_spec("distributed") is not None
+
+
+def run(*args, timeout=300):
+    return subprocess.run([sys.executable, "-m", "ballsurvey", *args], cwd=ROOT,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def test_scaling_on_the_headline_map_prints_fixed_cost_kernels_rest_and_same_maps():
+    r = run("bench", "--scaling", "--headline", "3", "--T", "2", "--threads", "2",
+            "--workers", "2")
+    assert r.returncode == 0, r.stderr
+    out = r.stdout
+    assert "the headline map, N = 3: 27 launches, T = 2.0 s, method dop853, mode period" in out
+    fixed = re.search(r"fixed cost per process \(a fresh process sweeping 8 launches.*\): "
+                      r"([\d.]+) s on 1 thread, ([\d.]+) s on 2 threads", out)
+    assert fixed and all(float(v) > 0 for v in fixed.groups()), out
+    names = ["1 thread, one process", "2 threads, one process"]
+    names += ["--workers 2 (dask, 1 thread each)"] if HAS_DASK else []
+    rows = {}
+    for name in names:
+        m = re.search(re.escape(name) + r" +([\d.]+) +(\d+)% +([\d.]+) +(-?[\d.]+) +([\d.]+)x +"
+                      r"([\d.]+)x", out)
+        assert m, (name, out)
+        rows[name] = [float(v) for v in m.groups()]
+    one_wall, one_kernels = rows[names[0]][0], rows[names[0]][2]
+    for name, (wall, _, kernels, rest, up_wall, up_kernels) in rows.items():
+        # every launch integrates: the kernels' time is read from each child's `sweep -v`
+        assert kernels > 0, (name, out)
+        assert abs(kernels + rest - wall) <= 0.011, (name, out)  # printed to 0.01 s each
+        assert up_wall == pytest.approx(one_wall / wall, abs=0.051 + 0.01 * one_wall / wall)
+        assert up_kernels == pytest.approx(one_kernels / kernels,
+                                           abs=0.051 + 0.01 * one_kernels / kernels)
+    assert rows[names[0]][4] == 1.0 and rows[names[0]][5] == 1.0
+    if HAS_DASK:
+        assert re.search(r"dask: cluster start [\d.]+ s, the workers' first call \(imports, "
+                         r"kernels loaded\) [\d.]+ s", out), out
+    else:
+        assert "--workers left out: dask is not installed" in out
+    assert re.search(r"with this fixed cost \([\d.]+ s\), 2 threads can at best give [\d.]+x",
+                     out), out
+    assert f"the {len(names)} maps are the same, bit for bit: yes" in out
+
+
+def test_phase_times_reads_what_sweep_verbose_prints():
+    """The bench's reader of a child's times against the line `sweep -v` writes, both kinds."""
+    from ballsurvey.bench import _phase_times
+    from ballsurvey.cli import _where_the_time_went
+    from ballsurvey.compose import TIMES
+
+    saved = dict(TIMES)
+    TIMES.clear()
+    TIMES.update({"integrate": 1.25, "fixed-frame fallback": 0.5, "label": 0.125})
+    try:
+        line = _where_the_time_went({"wall_s": 3.0, "compile_s": 0.4}, on_dask=False)
+    finally:
+        TIMES.clear()
+        TIMES.update(saved)
+    assert _phase_times("other\n" + line) == {"integrate": 1.25, "fixed-frame fallback": 0.5,
+                                              "label": 0.12}  # .2f rounds 0.125 to even
+    report = {"wall_s": 5.0, "cluster_start_s": 1.5, "workers_start_s": 0.75, "n_workers": 4,
+              "worker_times": {"integrate": 8.0, "label": 1.0}}
+    got = _phase_times(_where_the_time_went(report, on_dask=True))
+    # the kernels: each worker's on average, the sums over the 4 workers / 4
+    assert got == {"dask cluster start": 1.5, "workers' first call": 0.75,
+                   "the run on the cluster": 5.0, "integrate": 2.0, "label": 0.25}
+
+
+@pytest.mark.parametrize("args, says", [
+    (["--scaling"], "--scaling: give a spec file (.toml), or --headline [N]"),
+    (["--scaling", "sweeps/quick.toml", "--headline", "3"], "not both"),
+    (["--threads", "2", "--headline", "3"], "go with --scaling"),
+    (["--scaling", "--headline", "0"], "--headline: must be >= 1"),
+])
+def test_scaling_input_errors_are_one_line_exit_2(args, says):
+    r = run("bench", *args)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
+    assert says in r.stderr, r.stderr
