@@ -25,8 +25,10 @@ def test_scaling_on_the_headline_map_prints_fixed_cost_kernels_rest_and_same_map
     out = r.stdout
     assert "the headline map, N = 3: 27 launches, T = 2.0 s, method dop853, mode period" in out
     fixed = re.search(r"fixed cost per process \(a fresh process sweeping 8 launches.*\): "
-                      r"([\d.]+) s on 1 thread, ([\d.]+) s on 2 threads", out)
+                      r"([\d.]+) s on 1 thread \(kernels ([\d.]+) s\), ([\d.]+) s on 2 "
+                      r"threads \(kernels ([\d.]+) s\)", out)
     assert fixed and all(float(v) > 0 for v in fixed.groups()), out
+    assert float(fixed[1]) > float(fixed[2]) and float(fixed[3]) > float(fixed[4])
     names = ["1 thread, one process", "2 threads, one process"]
     names += ["--workers 2 (dask, 1 thread each)"] if HAS_DASK else []
     rows = {}
