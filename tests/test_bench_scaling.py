@@ -90,3 +90,47 @@ def test_scaling_input_errors_are_one_line_exit_2(args, says):
     r = run("bench", *args)
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1, r.stderr
     assert says in r.stderr, r.stderr
+
+
+def test_code_digest_is_read_back_from_its_cache_only_for_the_same_sources(tmp_path,
+                                                                            monkeypatch):
+    """A part of each process's fixed cost kept on disk: the stored digest is used while every
+    source byte is the same, and computed again after any change (here a comment) or when the
+    stored line is not a digest."""
+    import shutil
+
+    import ballsurvey
+    from ballsurvey.sweep import provenance
+
+    pkg = tmp_path / "pkg"
+    shutil.copytree(Path(ballsurvey.__file__).parent, pkg,
+                    ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+    monkeypatch.setattr(provenance, "PACKAGE", pkg)
+
+    def digest():
+        provenance._module_code.cache_clear()
+        provenance.code_digest.cache_clear()
+        return provenance.code_digest()
+
+    try:
+        _digest_cache_checks(pkg, digest)
+    finally:
+        provenance._module_code.cache_clear()
+        provenance.code_digest.cache_clear()
+
+
+def _digest_cache_checks(pkg, digest):
+    from ballsurvey.sweep import provenance
+
+    real = digest()
+    cache = pkg / "__pycache__" / provenance.DIGEST_CACHE
+    key, stored = cache.read_text().split()
+    assert stored == real
+    cache.write_text(f"{key} {'f' * 64}\n")
+    assert digest() == "f" * 64  # the same sources: read back, not computed
+    labels = pkg / "classify" / "labels.py"
+    labels.write_text(labels.read_text() + "\n# a comment\n")
+    assert digest() == real  # another key: computed (a comment leaves the digest unchanged)
+    assert cache.read_text().split()[0] != key
+    cache.write_text("not a digest\n")
+    assert digest() == real

@@ -1160,6 +1160,26 @@ def _quiet_unraisable(info) -> None:
 
 
 def main(argv=None) -> int:
+    """Run the command in `argv` (default: sys.argv[1:]); returns the exit status."""
+    code = _main(argv)
+    _skip_final_collection()
+    return code
+
+
+def _skip_final_collection() -> None:
+    """The command line (`ballsurvey._COMMAND_LINE`) only, its command done: the objects alive
+    now are left out of the interpreter's garbage collections at exit (`gc.freeze`). Those
+    collections walk every object of numba, xarray and pandas, about 0.25 s of each process's
+    exit; Python does not promise to finalize objects still alive at exit anyway, and the
+    command's files are closed by then (exit handlers still run). `main` called from Python
+    leaves the caller's collector alone."""
+    import gc
+
+    if getattr(sys.modules.get("ballsurvey"), "_COMMAND_LINE", False):
+        gc.freeze()
+
+
+def _main(argv=None) -> int:
     sys.unraisablehook = _quiet_unraisable
     try:
         parser = build_parser()
