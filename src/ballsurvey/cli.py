@@ -909,7 +909,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="--scaling: dask worker processes of the last run (default: --threads)")
     b.add_argument("--headline", type=int, metavar="N", nargs="?", const=100,
                    help="instead: an N^3 period-mode map (N = 100 when not given) with label "
-                        "agreement against full integration on 1000 random launches")
+                        "agreement against full integration on 1000 random launches; with "
+                        "--scaling, the map the scaling bench sweeps")
     b.add_argument("--method", choices=("dop853", "rk4"), default=None,
                    help="--headline: the map's method (dop853: rtol 1e-9, samples every 4 ms; "
                         "rk4: dt 2e-4 s, samples every 0.8 ms; default: dop853, rk4 with "
@@ -918,7 +919,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="instead: period mode against full integration on an N x N map, the "
                         "period-map path against simulate, and the quadrature's speed")
     b.add_argument("--T", type=float, default=20.0, metavar="SECONDS",
-                   help="duration (s) for --map / --headline / --period")
+                   help="duration (s) for --map / --headline (also with --scaling) / --period")
     b.set_defaults(func=_cmd_bench)
 
     s = cmd("sweep", help="integrate and classify every launch of a spec; write a netCDF map")
