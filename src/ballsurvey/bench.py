@@ -272,8 +272,9 @@ def run_scaling(path=None, threads: int | None = None, workers: int | None = Non
     """A spec's sweep end to end, each run a fresh `ballsurvey sweep -v` process: on 1 numba
     thread, on `threads` (default: every core this process may use) in one process, and on a
     local dask cluster of `workers` one-thread processes (default: as many as threads; left out,
-    with a line, when dask is not installed). A run of each of the last two first, untimed, so
-    that every timed run finds its kernels in the disk cache.
+    with a line, when dask is not installed). A run of each of the last two first, and one of
+    the fixed cost's sweep, untimed, so that every timed run finds its kernels in the disk
+    cache.
 
     path: the spec (TOML); or headline: N, the `bench --headline` map of N^3 launches
     (`headline_spec`: to T (s), by `method` with its `HEADLINE_RUN` settings) written as a spec
@@ -325,9 +326,9 @@ def run_scaling(path=None, threads: int | None = None, workers: int | None = Non
                                           out=Path(tmp) / "headline.nc"))
             spec = load_spec(path)
         title = (f"the headline map, N = {headline}" if headline is not None else str(path))
-        method = spec.method if spec.method in HEADLINE_RUN else "dop853"
+        probe_method = spec.method if spec.method in HEADLINE_RUN else "dop853"
         probe_path = Path(tmp) / "probe.toml"
-        probe_path.write_text(headline_spec(PROBE_N, method=method, T=spec.T,
+        probe_path.write_text(headline_spec(PROBE_N, method=probe_method, T=spec.T,
                                             out=Path(tmp) / "probe.nc"))
 
         def sweep(spec_path, name, n_threads, extra):
@@ -349,6 +350,7 @@ def run_scaling(path=None, threads: int | None = None, workers: int | None = Non
 
         for name, (n_threads, extra) in list(runs.items())[-2:]:  # fill the caches, untimed
             sweep(path, name, n_threads, extra)
+        sweep(probe_path, "fixed cost", threads, [])  # its kernels too (another mode, method)
         for n_threads in sorted({1, threads}):
             probe[n_threads] = sweep(probe_path, "fixed cost", n_threads, [])
         for name, (n_threads, extra) in runs.items():
@@ -368,8 +370,8 @@ def run_scaling(path=None, threads: int | None = None, workers: int | None = Non
     fixed = ", ".join(f"{v['wall_s']:.2f} s on {k} thread{'s' if k > 1 else ''} (kernels "
                       f"{v['kernels_s']:.2f} s)" for k, v in probe.items())
     out(f"  fixed cost per process (a fresh process sweeping {PROBE_N ** 3} launches, the "
-        f"headline map's settings at N = {PROBE_N}, {method}): {fixed}; its kernels' time is "
-        f"mostly numba loading the cached kernels at their first call")
+        f"headline map's settings at N = {PROBE_N}, {probe_method}): {fixed}; its kernels' "
+        f"time is mostly numba loading the cached kernels at their first call")
     out(f"  {'run':38s}{'wall (s)':>9s}{'CPU':>6s}{'kernels (s)':>12s}{'rest (s)':>9s}"
         f"{'speed-up: wall':>16s}{'kernels':>9s}")
     for name, row in rows.items():
