@@ -262,6 +262,7 @@ def _cmd_sweep(args):
         t_cluster = time.perf_counter()
         with dask_client(args.scheduler, args.workers, wait_s) as client:
             report["cluster_start_s"] = time.perf_counter() - t_cluster
+            report["cluster_start"] = "connection" if args.scheduler else "cluster start"
             written = run_sweep(spec, resume=args.resume, force=args.force, client=client,
                                 progress=progress, command=command, dask_wait_s=wait_s,
                                 notice=notice, on_unit=on_unit, report=report)
@@ -294,7 +295,8 @@ def _cmd_sweep(args):
 def _where_the_time_went(report: dict, on_dask: bool) -> str:
     """`sweep -v`'s account of a run's time (s): the kernels' phases (`compose.TIMES`: in this
     process, or on dask each worker's on average), the rest of the run, and on dask the
-    cluster's start and the workers' first call. `bench --scaling` reads it."""
+    cluster's start (or the connection to a running scheduler) and the workers' first call.
+    `bench --scaling` reads it."""
     from .compose import TIMES
 
     def phases(times, per=1):
@@ -305,7 +307,8 @@ def _where_the_time_went(report: dict, on_dask: bool) -> str:
         n = report.get("n_workers", 0)
         kernels = (f"; on each of the {n} workers, on average: "
                    f"{phases(report['worker_times'], n)}" if n else "")
-        return (f"  where the time went: dask cluster start {report['cluster_start_s']:.2f} s, "
+        start = report.get("cluster_start", "cluster start")
+        return (f"  where the time went: dask {start} {report['cluster_start_s']:.2f} s, "
                 f"workers' first call {report.get('workers_start_s', float('nan')):.2f} s "
                 f"(imports, kernels loaded), the run on the cluster {wall:.2f} s{kernels}")
     comp = report.get("compile_s", 0.0)
