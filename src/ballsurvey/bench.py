@@ -371,7 +371,8 @@ def run_scaling(path=None, threads: int | None = None, workers: int | None = Non
                       f"{v['kernels_s']:.2f} s)" for k, v in probe.items())
     out(f"  fixed cost per process (a fresh process sweeping {PROBE_N ** 3} launches, the "
         f"headline map's settings at N = {PROBE_N}, {probe_method}): {fixed}; its kernels' "
-        f"time is mostly numba loading the cached kernels at their first call")
+        f"time is mostly numba's start at the first kernel call (its CPU target, the cached "
+        f"kernels)")
     out(f"  {'run':38s}{'wall (s)':>9s}{'CPU':>6s}{'kernels (s)':>12s}{'rest (s)':>9s}"
         f"{'speed-up: wall':>16s}{'kernels':>9s}")
     for name, row in rows.items():
