@@ -48,7 +48,7 @@ def test_scaling_on_the_headline_map_prints_fixed_cost_kernels_rest_and_same_map
     assert rows[names[0]][4] == 1.0 and rows[names[0]][5] == 1.0
     if HAS_DASK:
         assert re.search(r"dask: cluster start [\d.]+ s, the workers' first call \(imports, "
-                         r"kernels loaded\) [\d.]+ s", out), out
+                         r"kernels loaded\) [\d.]+ s, closing the cluster [\d.]+ s", out), out
     else:
         assert "--workers left out: dask is not installed" in out
     assert re.search(r"with this fixed cost \([\d.]+ s\), 2 threads can at best give [\d.]+x",
@@ -73,11 +73,12 @@ def test_phase_times_reads_what_sweep_verbose_prints():
     assert _phase_times("other\n" + line) == {"integrate": 1.25, "fixed-frame fallback": 0.5,
                                               "label": 0.12}  # .2f rounds 0.125 to even
     report = {"wall_s": 5.0, "cluster_start_s": 1.5, "workers_start_s": 0.75, "n_workers": 4,
-              "worker_times": {"integrate": 8.0, "label": 1.0}}
+              "cluster_close_s": 0.5, "worker_times": {"integrate": 8.0, "label": 1.0}}
     got = _phase_times(_where_the_time_went(report, on_dask=True))
     # the kernels: each worker's on average, the sums over the 4 workers / 4
     assert got == {"dask cluster start": 1.5, "workers' first call": 0.75,
-                   "the run on the cluster": 5.0, "integrate": 2.0, "label": 0.25}
+                   "the run on the cluster": 5.0, "closing": 0.5, "integrate": 2.0,
+                   "label": 0.25}
 
 
 @pytest.mark.parametrize("args, says", [

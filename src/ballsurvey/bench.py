@@ -384,10 +384,10 @@ def run_scaling(path=None, threads: int | None = None, workers: int | None = Non
         " each worker's on average); rest: wall minus kernels")
     if has_dask:
         ph = rows[dask_run]["phases"]
-        start, first = (ph.get(k, float("nan")) for k in ("dask cluster start",
-                                                          "workers' first call"))
+        start, first, close = (ph.get(k, float("nan")) for k in (
+            "dask cluster start", "workers' first call", "closing"))
         out(f"  dask: cluster start {start:.2f} s, the workers' first call (imports, kernels "
-            f"loaded) {first:.2f} s")
+            f"loaded) {first:.2f} s, closing the cluster {close:.2f} s")
     else:
         out("  (--workers left out: dask is not installed; pip install 'ballsurvey[dask]')")
     if threads > 1:

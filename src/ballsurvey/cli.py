@@ -266,6 +266,8 @@ def _cmd_sweep(args):
             written = run_sweep(spec, resume=args.resume, force=args.force, client=client,
                                 progress=progress, command=command, dask_wait_s=wait_s,
                                 notice=notice, on_unit=on_unit, report=report)
+            t_cluster = time.perf_counter()
+        report["cluster_close_s"] = time.perf_counter() - t_cluster
     except KeyboardInterrupt as exc:  # the run's own account, or one of the saved parts
         _ignore_more_ctrl_c()
         again = " ".join(shlex.quote(a) for a in sys.argv[1:] if a != "--resume")
@@ -295,8 +297,8 @@ def _cmd_sweep(args):
 def _where_the_time_went(report: dict, on_dask: bool) -> str:
     """`sweep -v`'s account of a run's time (s): the kernels' phases (`compose.TIMES`: in this
     process, or on dask each worker's on average), the rest of the run, and on dask the
-    cluster's start (or the connection to a running scheduler) and the workers' first call.
-    `bench --scaling` reads it."""
+    cluster's start (or the connection to a running scheduler), the workers' first call and the
+    client's (and a local cluster's) closing. `bench --scaling` reads it."""
     from .compose import TIMES
 
     def phases(times, per=1):
@@ -310,7 +312,8 @@ def _where_the_time_went(report: dict, on_dask: bool) -> str:
         start = report.get("cluster_start", "cluster start")
         return (f"  where the time went: dask {start} {report['cluster_start_s']:.2f} s, "
                 f"workers' first call {report.get('workers_start_s', float('nan')):.2f} s "
-                f"(imports, kernels loaded), the run on the cluster {wall:.2f} s{kernels}")
+                f"(imports, kernels loaded), the run on the cluster {wall:.2f} s, closing "
+                f"{report.get('cluster_close_s', float('nan')):.2f} s{kernels}")
     comp = report.get("compile_s", 0.0)
     rest = wall - sum(TIMES.values())
     # kernels compile at their first call, inside the phase that calls them
