@@ -25,10 +25,13 @@ def test_scaling_on_the_headline_map_prints_fixed_cost_kernels_rest_and_same_map
     out = r.stdout
     assert "the headline map, N = 3: 27 launches, T = 2.0 s, method dop853, mode period" in out
     fixed = re.search(r"fixed cost per process \(a fresh process sweeping 8 launches.*\): "
-                      r"([\d.]+) s on 1 thread \(kernels ([\d.]+) s\), ([\d.]+) s on 2 "
-                      r"threads \(kernels ([\d.]+) s\)", out)
-    assert fixed and all(float(v) > 0 for v in fixed.groups()), out
-    assert float(fixed[1]) > float(fixed[2]) and float(fixed[3]) > float(fixed[4])
+                      r"([\d.]+) s on 1 thread \(numba start ([\d.]+) s, kernels ([\d.]+) s\), "
+                      r"([\d.]+) s on 2 threads \(numba start ([\d.]+) s, kernels ([\d.]+) s\)",
+                      out)
+    assert fixed, out
+    wall1, start1, kernels1, wall2, start2, kernels2 = map(float, fixed.groups())
+    assert wall1 > start1 + kernels1 and wall2 > start2 + kernels2, out
+    assert start1 > 0 and start2 > 0, out
     names = ["1 thread, one process", "2 threads, one process"]
     names += ["--workers 2 (dask, 1 thread each)"] if HAS_DASK else []
     rows = {}
@@ -66,11 +69,13 @@ def test_phase_times_reads_what_sweep_verbose_prints():
     TIMES.clear()
     TIMES.update({"integrate": 1.25, "fixed-frame fallback": 0.5, "label": 0.125})
     try:
-        line = _where_the_time_went({"wall_s": 3.0, "compile_s": 0.4}, on_dask=False)
+        line = _where_the_time_went({"wall_s": 3.0, "compile_s": 0.4, "numba_start_s": 0.25},
+                                    on_dask=False)
     finally:
         TIMES.clear()
         TIMES.update(saved)
-    assert _phase_times("other\n" + line) == {"integrate": 1.25, "fixed-frame fallback": 0.5,
+    assert _phase_times("other\n" + line) == {"numba start": 0.25, "integrate": 1.25,
+                                              "fixed-frame fallback": 0.5,
                                               "label": 0.12}  # .2f rounds 0.125 to even
     report = {"wall_s": 5.0, "cluster_start_s": 1.5, "workers_start_s": 0.75, "n_workers": 4,
               "cluster_close_s": 0.5, "worker_times": {"integrate": 8.0, "label": 1.0}}

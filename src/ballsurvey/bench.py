@@ -253,8 +253,8 @@ PROBE_N = 2
 
 def _phase_times(stderr: str) -> dict:
     """{phase: seconds} from the 'where the time went' line of `sweep -v` (names of letters,
-    spaces, hyphens and apostrophes each followed by its seconds: integrate, fixed-frame
-    fallback, label; dask cluster start, workers' first call)."""
+    spaces, hyphens and apostrophes each followed by its seconds: numba start, integrate,
+    fixed-frame fallback, label; dask cluster start, workers' first call, closing)."""
     line = next((ln for ln in stderr.splitlines() if "where the time went:" in ln), "")
     return {k: float(v) for k, v in re.findall(r"(?:: |, |; )([a-z][a-z' -]*) (\d+\.\d+) s",
                                                 line)}
@@ -282,7 +282,8 @@ def run_scaling(path=None, threads: int | None = None, workers: int | None = Non
 
     Prints the fixed cost per process (the wall time of a fresh process sweeping the
     `HEADLINE_SPEC` map at N = `PROBE_N`, 8 launches, with the spec's method where the headline
-    has settings for it, else dop853, on 1 and on `threads` threads); per run the wall time,
+    has settings for it, else dop853, on 1 and on `threads` threads, with numba's start and its
+    kernels' time); per run the wall time,
     CPU use, the kernels' time (`sweep -v`: `KERNEL_PHASES`; on dask each worker's on average),
     the rest (wall minus kernels), and the speed-up against 1 thread on wall and on kernel time;
     dask's cluster start and workers' first call; the most `threads` threads could gain with
@@ -367,12 +368,11 @@ def run_scaling(path=None, threads: int | None = None, workers: int | None = Non
     for row in probe.values():
         row.pop("file")
         row["kernels_s"] = sum(row["phases"].get(k, 0.0) for k in KERNEL_PHASES)
-    fixed = ", ".join(f"{v['wall_s']:.2f} s on {k} thread{'s' if k > 1 else ''} (kernels "
+    fixed = ", ".join(f"{v['wall_s']:.2f} s on {k} thread{'s' if k > 1 else ''} (numba start "
+                      f"{v['phases'].get('numba start', float('nan')):.2f} s, kernels "
                       f"{v['kernels_s']:.2f} s)" for k, v in probe.items())
     out(f"  fixed cost per process (a fresh process sweeping {PROBE_N ** 3} launches, the "
-        f"headline map's settings at N = {PROBE_N}, {probe_method}): {fixed}; its kernels' "
-        f"time is mostly numba's start at the first kernel call (its CPU target, the cached "
-        f"kernels)")
+        f"headline map's settings at N = {PROBE_N}, {probe_method}): {fixed}")
     out(f"  {'run':38s}{'wall (s)':>9s}{'CPU':>6s}{'kernels (s)':>12s}{'rest (s)':>9s}"
         f"{'speed-up: wall':>16s}{'kernels':>9s}")
     for name, row in rows.items():
@@ -381,7 +381,7 @@ def run_scaling(path=None, threads: int | None = None, workers: int | None = Non
             f"{one['wall_s'] / row['wall_s']:15.1f}x"
             f"{one['kernels_s'] / max(row['kernels_s'], 1e-9):8.1f}x")
     out("  kernels: integrate + fixed-frame fallback + label, as `sweep -v` prints them (on dask:"
-        " each worker's on average); rest: wall minus kernels")
+        " each worker's on average); rest: wall minus kernels (numba's start included)")
     if has_dask:
         ph = rows[dask_run]["phases"]
         start, first, close = (ph.get(k, float("nan")) for k in (

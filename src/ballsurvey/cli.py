@@ -258,6 +258,8 @@ def _cmd_sweep(args):
               f" -> {spec.output}", file=sys.stderr, flush=True)
     if (args.scheduler or args.workers) and verbosity < 2:
         _quiet_dask()
+    if not (args.scheduler or args.workers):
+        report["numba_start_s"] = _start_numba()
     try:
         t_cluster = time.perf_counter()
         with dask_client(args.scheduler, args.workers, wait_s) as client:
@@ -295,10 +297,11 @@ def _cmd_sweep(args):
 
 
 def _where_the_time_went(report: dict, on_dask: bool) -> str:
-    """`sweep -v`'s account of a run's time (s): the kernels' phases (`compose.TIMES`: in this
-    process, or on dask each worker's on average), the rest of the run, and on dask the
-    cluster's start (or the connection to a running scheduler), the workers' first call and the
-    client's (and a local cluster's) closing. `bench --scaling` reads it."""
+    """`sweep -v`'s account of a run's time (s): numba's start (`_start_numba`), the kernels'
+    phases (`compose.TIMES`: in this process, or on dask each worker's on average), the rest of
+    the run, and on dask the cluster's start (or the connection to a running scheduler), the
+    workers' first call and the client's (and a local cluster's) closing. `bench --scaling`
+    reads it."""
     from .compose import TIMES
 
     def phases(times, per=1):
@@ -318,8 +321,26 @@ def _where_the_time_went(report: dict, on_dask: bool) -> str:
     rest = wall - sum(TIMES.values())
     # kernels compile at their first call, inside the phase that calls them
     comp = f"; {comp:.2f} s of it compiling kernels at first call" if comp >= 0.05 else ""
-    return (f"  where the time went: {phases(TIMES)}, the rest (plan, parts, writing) "
+    start = (f"numba start {report['numba_start_s']:.2f} s (before the run), "
+             if "numba_start_s" in report else "")
+    return (f"  where the time went: {start}{phases(TIMES)}, the rest (plan, parts, writing) "
             f"{rest:.2f} s{comp}")
+
+
+def _start_numba() -> float:
+    """numba's CPU target started (its registries of typing and lowering, which import
+    scipy.linalg for numba's linear algebra: about 0.2 s), as the first kernel call of a process
+    would: once here, the kernels' times (`compose.TIMES`) leave it out. Returns its seconds."""
+    import time
+
+    t = time.perf_counter()
+    try:
+        from numba.core.registry import cpu_target
+
+        cpu_target.target_context.refresh()
+    except (ImportError, AttributeError):  # numba's internals moved: the first call does it
+        pass
+    return time.perf_counter() - t
 
 
 def _quiet_dask() -> None:
