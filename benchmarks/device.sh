@@ -5,6 +5,8 @@
 #   bash benchmarks/device.sh map     # the 1e8-launch map (sweeps/gpu-1e8.toml): wall and peak memory
 #   bash benchmarks/device.sh cpu     # 16-core scaling of the square map, bench on 2 and 16 cores
 #   bash benchmarks/device.sh headline   # bench --headline --backend cuda; sweep --backend cuda
+#   bash benchmarks/device.sh scaling [N]   # bench --scaling on the headline map (N = 100: 1e6
+#                                           # launches) on 1 thread, 16 threads, 16 dask workers
 #   (also: map-n N, an N^3 map of the same box; observer, the kernel with and without samples)
 #
 # The machine has its own Python with numba, numba-cuda, numpy, xarray, pandas and matplotlib and
@@ -56,6 +58,9 @@ log="$out/$stage.log"
         python3 benchmarks/peak.py timeout -s INT 560 python3 -m ballsurvey sweep \
             sweeps/gpu-1e8.toml -o /tmp/gpu-1e8.nc --no-progress -v --resume
         ls -la /tmp/gpu-1e8.nc 2>&1 ;;
+    scaling)  # the fixed cost per process, each run's kernels and rest, identical maps
+        timeout 590 python3 -m ballsurvey bench --scaling --headline "${2:-100}" --threads 16 \
+            --workers 16 ;;
     cpu)
         timeout 330 python3 -m ballsurvey bench --scaling sweeps/square-map.toml --threads 16 \
             --workers 16

@@ -6,6 +6,7 @@ machine, so compare the ratio, not the absolute figures, across machines.
 """
 from __future__ import annotations
 
+import re
 import time
 
 import numba
@@ -244,14 +245,49 @@ def _cores() -> int:
         return os.cpu_count() or 1
 
 
-def run_scaling(path, threads: int | None = None, workers: int | None = None,
+#: the phases of a run that are kernel work (`compose.TIMES`, as `sweep -v` prints them)
+KERNEL_PHASES = ("integrate", "fixed-frame fallback", "label")
+#: launches per axis of the spec whose fresh-process sweep measures the fixed cost (2^3 = 8)
+PROBE_N = 2
+
+
+def _phase_times(stderr: str) -> dict:
+    """{phase: seconds} from the 'where the time went' line of `sweep -v` (names of letters,
+    spaces, hyphens and apostrophes each followed by its seconds: numba start, integrate,
+    fixed-frame fallback, label; dask cluster start, workers' first call, closing)."""
+    line = next((ln for ln in stderr.splitlines() if "where the time went:" in ln), "")
+    return {k: float(v) for k, v in re.findall(r"(?:: |, |; )([a-z][a-z' -]*) (\d+\.\d+) s",
+                                                line)}
+
+
+def _amdahl(t1: float, f: float, p: int) -> float:
+    """The most p threads can gain on a run of t1 seconds of which f does not shrink:
+    t1 / (f + (t1 - f) / p)."""
+    return t1 / (f + max(t1 - f, 0.0) / p)
+
+
+def run_scaling(path=None, threads: int | None = None, workers: int | None = None, *,
+                headline: int | None = None, T: float = 20.0, method: str = "dop853",
                 out=print) -> dict:
-    """A spec's sweep end to end, each run a fresh `ballsurvey sweep` process: on 1 numba thread,
-    on `threads` (default: every core this process may use) in one process, and on a local dask
-    cluster of `workers` one-thread processes (default: as many as threads; left out, with a
-    line, when dask is not installed). A run of each of the last two first, untimed, so that
-    every timed run finds its kernels in the disk cache. Prints wall time, CPU use and the
-    speed-up against 1 thread, and whether the maps are the same."""
+    """A spec's sweep end to end, each run a fresh `ballsurvey sweep -v` process: on 1 numba
+    thread, on `threads` (default: every core this process may use) in one process, and on a
+    local dask cluster of `workers` one-thread processes (default: as many as threads; left out,
+    with a line, when dask is not installed). A run of each of the last two first, and one of
+    the fixed cost's sweep, untimed, so that every timed run finds its kernels in the disk
+    cache.
+
+    path: the spec (TOML); or headline: N, the `bench --headline` map of N^3 launches
+    (`headline_spec`: to T (s), by `method` with its `HEADLINE_RUN` settings) written as a spec
+    in a temporary folder.
+
+    Prints the fixed cost per process (the wall time of a fresh process sweeping the
+    `HEADLINE_SPEC` map at N = `PROBE_N`, 8 launches, with the spec's method where the headline
+    has settings for it, else dop853, on 1 and on `threads` threads, with numba's start and its
+    kernels' time); per run the wall time,
+    CPU use, the kernels' time (`sweep -v`: `KERNEL_PHASES`; on dask each worker's on average),
+    the rest (wall minus kernels), and the speed-up against 1 thread on wall and on kernel time;
+    dask's cluster start and workers' first call; the most `threads` threads could gain with
+    that fixed cost; and whether the maps are the same, bit for bit."""
     import importlib.util
     import os
     import resource
@@ -267,28 +303,42 @@ def run_scaling(path, threads: int | None = None, workers: int | None = None,
     for name, value in (("--threads", threads), ("--workers", workers)):
         if value is not None:
             limits.workers(value, name)  # at least 1, at most limits.MAX_WORKERS
-    spec = load_spec(path)
-    if spec.backend != "cpu":
-        raise InputError(f"{path}: bench --scaling times the cpu backend; this spec has backend "
-                         f"{spec.backend!r}")
+    if (path is None) == (headline is None):
+        raise InputError("bench --scaling: give a spec file (.toml) or --headline [N]")
+    if path is not None:
+        spec = load_spec(path)
+        if spec.backend != "cpu":
+            raise InputError(f"{path}: bench --scaling times the cpu backend; this spec has "
+                             f"backend {spec.backend!r}")
     threads = threads or _cores()
     workers = workers or threads
     runs = {"1 thread, one process": (1, [])}
     if threads > 1:
         runs[f"{threads} threads, one process"] = (threads, [])
     has_dask = importlib.util.find_spec("distributed") is not None
+    dask_run = f"--workers {workers} (dask, 1 thread each)"
     if has_dask:
-        runs[f"--workers {workers} (dask, 1 thread each)"] = (1, ["--workers", str(workers)])
-    rows = {}
+        runs[dask_run] = (1, ["--workers", str(workers)])
+    rows, probe = {}, {}
     with tempfile.TemporaryDirectory() as tmp:
+        if headline is not None:
+            path = Path(tmp) / "headline.toml"
+            path.write_text(headline_spec(headline, T=T, method=method,
+                                          out=Path(tmp) / "headline.nc"))
+            spec = load_spec(path)
+        title = (f"the headline map, N = {headline}" if headline is not None else str(path))
+        probe_method = spec.method if spec.method in HEADLINE_RUN else "dop853"
+        probe_path = Path(tmp) / "probe.toml"
+        probe_path.write_text(headline_spec(PROBE_N, method=probe_method, T=spec.T,
+                                            out=Path(tmp) / "probe.nc"))
 
-        def sweep(name, n_threads, extra):
+        def sweep(spec_path, name, n_threads, extra):
             env = dict(os.environ, NUMBA_NUM_THREADS=str(n_threads))
             target = Path(tmp) / f"run{len(rows)}.nc"
             before = resource.getrusage(resource.RUSAGE_CHILDREN)
             t = time.perf_counter()
-            r = subprocess.run([sys.executable, "-m", "ballsurvey", "sweep", str(path), "-o",
-                                str(target), "--force", "-q", "--no-progress", *extra],
+            r = subprocess.run([sys.executable, "-m", "ballsurvey", "sweep", str(spec_path),
+                                "-o", str(target), "--force", "-v", "--no-progress", *extra],
                                env=env, capture_output=True, text=True)
             wall = time.perf_counter() - t
             after = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -296,26 +346,69 @@ def run_scaling(path, threads: int | None = None, workers: int | None = None,
                 last = (r.stderr.strip().splitlines() or ["(no message)"])[-1]
                 raise RunError(f"the run '{name}' failed: {last}")
             cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-            return wall, cpu, target
+            return {"wall_s": wall, "cpu_s": cpu, "file": target,
+                    "phases": _phase_times(r.stderr)}
 
         for name, (n_threads, extra) in list(runs.items())[-2:]:  # fill the caches, untimed
-            sweep(name, n_threads, extra)
+            sweep(path, name, n_threads, extra)
+        sweep(probe_path, "fixed cost", threads, [])  # its kernels too (another mode, method)
+        for n_threads in sorted({1, threads}):
+            probe[n_threads] = sweep(probe_path, "fixed cost", n_threads, [])
         for name, (n_threads, extra) in runs.items():
-            rows[name] = sweep(name, n_threads, extra)
-        files = [row[2] for row in rows.values()]
+            rows[name] = sweep(path, name, n_threads, extra)
+        files = [row.pop("file") for row in rows.values()]
         same = all(_same_maps(files[0], f) for f in files[1:])
-    one = rows["1 thread, one process"][0]
-    out(f"ballsurvey scaling bench: {path}: {spec.n_launches} launches, T = {spec.T} s, "
+    for row in rows.values():
+        row["kernels_s"] = sum(row["phases"].get(k, 0.0) for k in KERNEL_PHASES)
+        row["rest_s"] = row["wall_s"] - row["kernels_s"]
+    one = rows["1 thread, one process"]
+    out(f"ballsurvey scaling bench: {title}: {spec.n_launches} launches, T = {spec.T} s, "
         f"method {spec.method}, mode {spec.mode}; {_cores()} cores here; each run a fresh "
-        f"process with warm caches")
-    out(f"  {'run':40s}{'wall (s)':>10s}{'CPU':>8s}{'speed-up':>10s}")
-    for name, (wall, cpu, _) in rows.items():
-        out(f"  {name:40s}{wall:10.2f}{100 * cpu / wall:7.0f}%{one / wall:9.1f}x")
-    if not has_dask:
+        f"`ballsurvey sweep -v` process with warm caches")
+    for row in probe.values():
+        row.pop("file")
+        row["kernels_s"] = sum(row["phases"].get(k, 0.0) for k in KERNEL_PHASES)
+    fixed = ", ".join(f"{v['wall_s']:.2f} s on {k} thread{'s' if k > 1 else ''} (numba start "
+                      f"{v['phases'].get('numba start', float('nan')):.2f} s, kernels "
+                      f"{v['kernels_s']:.2f} s)" for k, v in probe.items())
+    out(f"  fixed cost per process (a fresh process sweeping {PROBE_N ** 3} launches, the "
+        f"headline map's settings at N = {PROBE_N}, {probe_method}): {fixed}")
+    out(f"  {'run':38s}{'wall (s)':>9s}{'CPU':>6s}{'kernels (s)':>12s}{'rest (s)':>9s}"
+        f"{'speed-up: wall':>16s}{'kernels':>9s}")
+    for name, row in rows.items():
+        out(f"  {name:38s}{row['wall_s']:9.2f}{100 * row['cpu_s'] / row['wall_s']:5.0f}%"
+            f"{row['kernels_s']:12.2f}{row['rest_s']:9.2f}"
+            f"{one['wall_s'] / row['wall_s']:15.1f}x"
+            f"{one['kernels_s'] / max(row['kernels_s'], 1e-9):8.1f}x")
+    out("  kernels: integrate + fixed-frame fallback + label, as `sweep -v` prints them (on dask:"
+        " each worker's on average); rest: wall minus kernels (numba's start included)")
+    if has_dask:
+        ph = rows[dask_run]["phases"]
+        start, first, close = (ph.get(k, float("nan")) for k in (
+            "dask cluster start", "workers' first call", "closing"))
+        out(f"  dask: cluster start {start:.2f} s, the workers' first call (imports, kernels "
+            f"loaded) {first:.2f} s, closing the cluster {close:.2f} s")
+    else:
         out("  (--workers left out: dask is not installed; pip install 'ballsurvey[dask]')")
+    if threads > 1:
+        f = probe[threads]["wall_s"]
+        out(f"  with this fixed cost ({f:.2f} s), {threads} threads can at best give "
+            f"{_amdahl(one['wall_s'], f, threads):.1f}x on this map (kernels scaling perfectly)")
     out(f"  the {len(rows)} maps are the same, bit for bit: {'yes' if same else 'NO'}")
-    return {"runs": {k: {"wall_s": v[0], "cpu_s": v[1]} for k, v in rows.items()},
-            "same": same}
+    return {"runs": rows, "fixed_cost": probe, "same": same}
+
+
+def headline_spec(n: int, *, T: float = 20.0, method: str = "dop853", backend: str = "cpu",
+                  out, **run) -> str:
+    """The headline map's spec (`HEADLINE_SPEC`) as TOML text: n^3 launches, T (s), the method's
+    `HEADLINE_RUN` settings (run: those to replace: dt, observe_every, rtol), chunk 8192 on the
+    CPU (the backend's default chunk otherwise), the map written to `out`."""
+    from .sweep.spec import DEFAULT_CHUNK
+
+    settings = {**HEADLINE_RUN[method], **{k: v for k, v in run.items() if v is not None}}
+    chunk = 8192 if backend == "cpu" else DEFAULT_CHUNK[backend]
+    return HEADLINE_SPEC.format(n=n, T=T, out=out, method=method, backend=backend, chunk=chunk,
+                                **settings)
 
 HEADLINE_SPEC = """
 title = "headline {n}^3 map"
@@ -364,7 +457,6 @@ def run_headline(n: int = 100, T: float = 20.0, method: str = "dop853", dt: floa
     from .compose import TIMES, classify, run_launches, warm_fallback
     from .sweep import load_spec, run_sweep
     from .sweep.engine import launch_table
-    from .sweep.spec import DEFAULT_CHUNK
 
     run = dict(HEADLINE_RUN[method])
     run.update({k: v for k, v in dict(dt=dt, observe_every=observe_every, rtol=rtol).items()
@@ -372,15 +464,11 @@ def run_headline(n: int = 100, T: float = 20.0, method: str = "dop853", dt: floa
     dt = run["dt"]
     with tempfile.TemporaryDirectory() as tmp:
         target = Path(out_file) if out_file else Path(tmp) / "headline.nc"
-        chunk = 8192 if backend == "cpu" else DEFAULT_CHUNK[backend]
-        text = HEADLINE_SPEC.format(n=n, T=T, out=target, method=method, backend=backend,
-                                    chunk=chunk, **run)
         path = Path(tmp) / "headline.toml"
-        path.write_text(text)
+        path.write_text(headline_spec(n, T=T, method=method, backend=backend, out=target, **run))
         spec = load_spec(path)
-        warm = load_spec(path, text=HEADLINE_SPEC.format(n=2, T=dt * 8, method=method,
-                                                         backend=backend, chunk=chunk,
-                                                         out=Path(tmp) / "w.nc", **run))
+        warm = load_spec(path, text=headline_spec(2, T=dt * 8, method=method, backend=backend,
+                                                  out=Path(tmp) / "w.nc", **run))
         run_sweep(warm, command="bench warm-up", progress=False)
         warm_fallback(Ball.paper().nondim_params())
         TIMES.clear()

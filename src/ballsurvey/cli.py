@@ -84,6 +84,8 @@ COMMAND_ORDER = ("path", "sweep", "plot", "query", "find", "explore", "animate",
                  "refine", "paper", "accuracy", "bench")
 #: path's integration time (s) when --T is not given: long enough for the label on most launches
 PATH_T = 20.0
+#: what `bench --scaling` holds when given without a spec (then --headline names the map)
+SCALING_HEADLINE = "(the headline map)"
 
 
 def _check_writable(name, folder) -> None:
@@ -112,6 +114,8 @@ def _check_bench(args):
 
     modes = [f for f in ("map", "spec", "scaling", "period", "headline")
              if getattr(args, f) is not None]
+    if modes[:2] == ["scaling", "headline"]:  # the scaling bench on the headline map
+        modes = modes[:1] + modes[2:]
     if len(modes) > 1:
         raise UserError(f"--{modes[0]} and --{modes[1]} are two benchmarks: give one")
     for name in ("map", "period", "headline"):
@@ -125,17 +129,21 @@ def _check_bench(args):
     _opt("--T", args.T, positive=True, hi=limits.MAX_DURATION_S)
     for name in ("threads", "workers"):
         _opt(f"--{name}", getattr(args, name), integer=True, lo=1, hi=limits.MAX_WORKERS)
-    for name in ("spec", "scaling"):
-        if getattr(args, name) == "":
-            raise UserError(f"--{name}: give a spec file (.toml)")
+    if args.spec == "":
+        raise UserError("--spec: give a spec file (.toml)")
+    if args.scaling == "" or (args.scaling == SCALING_HEADLINE and args.headline is None):
+        raise UserError("--scaling: give a spec file (.toml), or --headline [N]")
+    if args.scaling not in (None, SCALING_HEADLINE) and args.headline is not None:
+        raise UserError("--scaling: give a spec file (.toml) or --headline [N], not both")
 
 
 def _cmd_bench(args):
     from .bench import run_bench, run_map_bench
 
     _check_bench(args)
-    if not args.scaling and (args.threads is not None or args.workers is not None):
-        raise InputError("--threads and --workers go with --scaling SPEC.toml")
+    if args.scaling is None and (args.threads is not None or args.workers is not None):
+        raise InputError("--threads and --workers go with --scaling SPEC.toml or --scaling "
+                         "--headline [N]")
 
     if args.map is not None:
         run_map_bench(n=args.map, T=args.T, dt=args.dt)
@@ -145,10 +153,13 @@ def _cmd_bench(args):
 
         run_spec_bench(args.spec)
         return
-    if args.scaling:
+    if args.scaling is not None:
         from .bench import run_scaling
 
-        run_scaling(args.scaling, threads=args.threads, workers=args.workers)
+        headline = args.scaling == SCALING_HEADLINE
+        run_scaling(None if headline else args.scaling, threads=args.threads,
+                    workers=args.workers, headline=args.headline if headline else None,
+                    T=args.T, method=args.method or "dop853")
         return
     if args.period is not None:
         from .bench import run_period_bench
@@ -190,6 +201,7 @@ def _check_cuda() -> None:
 
 def _cmd_sweep(args):
     import shlex
+    import time
     from dataclasses import replace
 
     from . import limits
@@ -233,8 +245,6 @@ def _cmd_sweep(args):
     last = [0.0]
 
     def on_unit(done, total):  # -v: a line per unit of work, at most two a second
-        import time
-
         now = time.monotonic()
         if verbosity >= 1 and (now - last[0] >= 0.5 or done == total):
             last[0] = now
@@ -248,11 +258,18 @@ def _cmd_sweep(args):
               f" -> {spec.output}", file=sys.stderr, flush=True)
     if (args.scheduler or args.workers) and verbosity < 2:
         _quiet_dask()
+    if not (args.scheduler or args.workers):
+        report["numba_start_s"] = _start_numba()
     try:
+        t_cluster = time.perf_counter()
         with dask_client(args.scheduler, args.workers, wait_s) as client:
+            report["cluster_start_s"] = time.perf_counter() - t_cluster
+            report["cluster_start"] = "connection" if args.scheduler else "cluster start"
             written = run_sweep(spec, resume=args.resume, force=args.force, client=client,
                                 progress=progress, command=command, dask_wait_s=wait_s,
                                 notice=notice, on_unit=on_unit, report=report)
+            t_cluster = time.perf_counter()
+        report["cluster_close_s"] = time.perf_counter() - t_cluster
     except KeyboardInterrupt as exc:  # the run's own account, or one of the saved parts
         _ignore_more_ctrl_c()
         again = " ".join(shlex.quote(a) for a in sys.argv[1:] if a != "--resume")
@@ -275,16 +292,55 @@ def _cmd_sweep(args):
         print(f"wrote {written}")
         return
     print(sweep_summary(written, spec.n_launches, report))
-    if verbosity >= 1 and client is None:
-        from .compose import TIMES
+    if verbosity >= 1:
+        print(_where_the_time_went(report, client is not None), file=sys.stderr)
 
-        comp = report.get("compile_s", 0.0)
-        parts = [f"{k} {v:.1f} s" for k, v in TIMES.items()]
-        rest = report.get("wall_s", float("nan")) - sum(TIMES.values())
-        # kernels compile at their first call, inside the phase that calls them
-        comp = f"; {comp:.1f} s of it compiling kernels at first call" if comp >= 0.05 else ""
-        print(f"  where the time went: {', '.join(parts)}, the rest (plan, parts, writing) "
-              f"{rest:.1f} s{comp}", file=sys.stderr)
+
+def _where_the_time_went(report: dict, on_dask: bool) -> str:
+    """`sweep -v`'s account of a run's time (s): numba's start (`_start_numba`), the kernels'
+    phases (`compose.TIMES`: in this process, or on dask each worker's on average), the rest of
+    the run, and on dask the cluster's start (or the connection to a running scheduler), the
+    workers' first call and the client's (and a local cluster's) closing. `bench --scaling`
+    reads it."""
+    from .compose import TIMES
+
+    def phases(times, per=1):
+        return ", ".join(f"{k} {v / per:.2f} s" for k, v in times.items())
+
+    wall = report.get("wall_s", float("nan"))
+    if on_dask:
+        n = report.get("n_workers", 0)
+        kernels = (f"; on each of the {n} workers, on average: "
+                   f"{phases(report['worker_times'], n)}" if n else "")
+        start = report.get("cluster_start", "cluster start")
+        return (f"  where the time went: dask {start} {report['cluster_start_s']:.2f} s, "
+                f"workers' first call {report.get('workers_start_s', float('nan')):.2f} s "
+                f"(imports, kernels loaded), the run on the cluster {wall:.2f} s, closing "
+                f"{report.get('cluster_close_s', float('nan')):.2f} s{kernels}")
+    comp = report.get("compile_s", 0.0)
+    rest = wall - sum(TIMES.values())
+    # kernels compile at their first call, inside the phase that calls them
+    comp = f"; {comp:.2f} s of it compiling kernels at first call" if comp >= 0.05 else ""
+    start = (f"numba start {report['numba_start_s']:.2f} s (before the run), "
+             if "numba_start_s" in report else "")
+    return (f"  where the time went: {start}{phases(TIMES)}, the rest (plan, parts, writing) "
+            f"{rest:.2f} s{comp}")
+
+
+def _start_numba() -> float:
+    """numba's CPU target started (its registries of typing and lowering, which import
+    scipy.linalg for numba's linear algebra: about 0.2 s), as the first kernel call of a process
+    would: once here, the kernels' times (`compose.TIMES`) leave it out. Returns its seconds."""
+    import time
+
+    t = time.perf_counter()
+    try:
+        from numba.core.registry import cpu_target
+
+        cpu_target.target_context.refresh()
+    except (ImportError, AttributeError):  # numba's internals moved: the first call does it
+        pass
+    return time.perf_counter() - t
 
 
 def _quiet_dask() -> None:
@@ -868,17 +924,21 @@ def build_parser() -> argparse.ArgumentParser:
                    help="instead: a spec's sweep end to end (this fresh process, kernels from the "
                         "disk cache) against the bare kernel on the same launches and steps (no "
                         "observer, fallback, labels or file); fixed-step methods, full-length runs")
-    b.add_argument("--scaling", metavar="SPEC.toml",
-                   help="instead: a spec's sweep in fresh processes on 1 thread, on --threads "
-                        "threads and on --workers dask processes (warm caches), with the "
-                        "speed-ups and whether the maps are the same")
+    b.add_argument("--scaling", metavar="SPEC.toml", nargs="?", const=SCALING_HEADLINE,
+                   help="instead: a spec's sweep (--scaling --headline [N]: the headline map of "
+                        "N^3 launches, N = 100 when not given) in fresh processes on 1 thread, on "
+                        "--threads threads and on --workers dask processes (warm caches): the "
+                        "fixed cost per process (a fresh process sweeping 8 launches), per run "
+                        "the wall time, the kernels' time (sweep -v) and the rest, the speed-ups "
+                        "on wall and on kernel time, and whether the maps are the same")
     b.add_argument("--threads", type=int, metavar="N",
                    help="--scaling: numba threads of the one-process run (default: every core)")
     b.add_argument("--workers", type=int, metavar="N",
                    help="--scaling: dask worker processes of the last run (default: --threads)")
     b.add_argument("--headline", type=int, metavar="N", nargs="?", const=100,
                    help="instead: an N^3 period-mode map (N = 100 when not given) with label "
-                        "agreement against full integration on 1000 random launches")
+                        "agreement against full integration on 1000 random launches; with "
+                        "--scaling, the map the scaling bench sweeps")
     b.add_argument("--method", choices=("dop853", "rk4"), default=None,
                    help="--headline: the map's method (dop853: rtol 1e-9, the observer on each "
                         "step; rk4: dt 2e-4 s, samples every 0.8 ms; default: dop853, rk4 with "
@@ -887,7 +947,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="instead: period mode against full integration on an N x N map, the "
                         "period-map path against simulate, and the quadrature's speed")
     b.add_argument("--T", type=float, default=20.0, metavar="SECONDS",
-                   help="duration (s) for --map / --headline / --period")
+                   help="duration (s) for --map / --headline (also with --scaling) / --period")
     b.set_defaults(func=_cmd_bench)
 
     s = cmd("sweep", help="integrate and classify every launch of a spec; write a netCDF map")
@@ -1129,6 +1189,26 @@ def _quiet_unraisable(info) -> None:
 
 
 def main(argv=None) -> int:
+    """Run the command in `argv` (default: sys.argv[1:]); returns the exit status."""
+    code = _main(argv)
+    _skip_final_collection()
+    return code
+
+
+def _skip_final_collection() -> None:
+    """The command line (`ballsurvey._COMMAND_LINE`) only, its command done: the objects alive
+    now are left out of the interpreter's garbage collections at exit (`gc.freeze`). Those
+    collections walk every object of numba, xarray and pandas, about 0.25 s of each process's
+    exit; Python does not promise to finalize objects still alive at exit anyway, and the
+    command's files are closed by then (exit handlers still run). `main` called from Python
+    leaves the caller's collector alone."""
+    import gc
+
+    if getattr(sys.modules.get("ballsurvey"), "_COMMAND_LINE", False):
+        gc.freeze()
+
+
+def _main(argv=None) -> int:
     sys.unraisablehook = _quiet_unraisable
     try:
         parser = build_parser()

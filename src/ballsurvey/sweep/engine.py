@@ -199,7 +199,8 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
     called as launches finish (within chunks when run in this process); on_chunk(k): after chunk
     k is saved; notice(line): what the run has to say (compiling, parts computed again); report:
     a dict filled with 'wall_s', 'compile_s', 'computed' (launches computed by this run) and
-    'resumed' (launches taken from an earlier run).
+    'resumed' (launches taken from an earlier run); on dask also `run_dask`'s account of the
+    workers' time.
 
     One writer per output: the run holds `<output>.lock` for its whole life; a second run on the
     same output is refused (OutputBusy). On resume the recorded chunk plan is used and parts are
@@ -273,7 +274,7 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
                                  on_unit=advance)
                 else:
                     run_dask(client, spec, chunks, todo, finished, dask_wait_s,
-                             partials=partials, on_task=advance)
+                             partials=partials, on_task=advance, report=report)
             compile_s = compiling["seconds"]
         except (KeyboardInterrupt, RunError) as exc:
             bar.close()

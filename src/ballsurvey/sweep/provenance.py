@@ -7,7 +7,11 @@ import ast
 import datetime as _dt
 import functools
 import hashlib
+import os
+import platform
+import re
 import subprocess
+import tempfile
 from pathlib import Path
 
 from .. import __version__
@@ -99,17 +103,66 @@ def compute_modules() -> tuple:
     return tuple(sorted(_module_code()))
 
 
+#: where `code_digest` keeps its last result, in the package's `__pycache__`: "key digest"
+DIGEST_CACHE = "ballsurvey-code-digest.txt"
+
+
+def _sources_key() -> str | None:
+    """SHA-256 over the version, Python's version and the bytes of every .py file of the
+    package (with its path): the same key, the same `code_digest`. None if one cannot be read."""
+    h = hashlib.sha256(f"ballsurvey {__version__}\0{platform.python_version()}\0".encode())
+    try:
+        for f in sorted(PACKAGE.rglob("*.py")):
+            data = f.read_bytes()
+            h.update(f.relative_to(PACKAGE).as_posix().encode() + b"\0")
+            h.update(len(data).to_bytes(8, "little") + data)
+    except OSError:
+        return None
+    return h.hexdigest()
+
+
 @functools.cache
 def code_digest() -> str:
     """SHA-256 over ballsurvey's version and the code of `compute_modules` (each file's syntax
     tree without docstrings: comments, blank lines and layout leave it unchanged). Recorded in a
     sweep's parts and map; a resume or an "up to date" needs the same digest, since launches
-    computed by other code may give other results."""
+    computed by other code may give other results.
+
+    Parsing those files takes about 0.1 s, a part of every sweep process's fixed cost: the
+    result is kept in `DIGEST_CACHE` under `_sources_key` (the bytes of every source file) and
+    read back while the sources are byte for byte the same; where it cannot be written, it is
+    computed each time."""
+    key = _sources_key()
+    cache = PACKAGE / "__pycache__" / DIGEST_CACHE
+    try:
+        stored_key, stored = cache.read_text().split()
+        if key is not None and stored_key == key and re.fullmatch(r"[0-9a-f]{64}", stored):
+            return stored
+    except (OSError, ValueError, UnicodeDecodeError):
+        pass  # none yet, or unreadable: computed below
     h = hashlib.sha256(f"ballsurvey {__version__}\n".encode())
     code = _module_code()
     for rel in sorted(code):
         h.update(f"{rel}\n{code[rel]}\n".encode())
-    return h.hexdigest()
+    digest = h.hexdigest()
+    if key is not None:
+        _keep(cache, f"{key} {digest}\n")
+    return digest
+
+
+def _keep(path: Path, text: str) -> None:
+    """`text` into `path`, whole or not at all (written aside, then renamed over); nothing
+    where it cannot be written (a read-only install)."""
+    tmp = None
+    try:
+        path.parent.mkdir(exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=".digest-", dir=path.parent)
+        with os.fdopen(fd, "w") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except OSError:
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
 
 
 def global_attrs(spec: Spec, command: str) -> dict:
