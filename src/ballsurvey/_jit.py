@@ -56,16 +56,21 @@ def digested_files(pkg: Path = _PKG) -> list[Path]:
     return files
 
 
+def hash_files(h, files, root: Path) -> None:
+    """Feed each file's path (relative to root) and bytes into the hash h (OSError propagates)."""
+    for f in files:
+        data = f.read_bytes()
+        h.update(f.relative_to(root).as_posix().encode() + b"\0")
+        h.update(len(data).to_bytes(8, "little") + data)
+
+
 def source_digest(pkg: Path = _PKG) -> str | None:
     """SHA-256 (hex) of the digested sources and the versions; None when they cannot be read."""
     h = hashlib.sha256()
     for part in (__version__, nb.__version__, platform.python_version()):
         h.update(part.encode() + b"\0")
     try:
-        for f in digested_files(pkg):
-            data = f.read_bytes()
-            h.update(f.relative_to(pkg).as_posix().encode() + b"\0")
-            h.update(len(data).to_bytes(8, "little") + data)
+        hash_files(h, digested_files(pkg), pkg)
     except OSError:
         return None
     return h.hexdigest()

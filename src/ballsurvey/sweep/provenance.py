@@ -14,7 +14,7 @@ import subprocess
 import tempfile
 from pathlib import Path
 
-from .. import __version__
+from .. import __version__, _jit
 from ..store import CONVENTIONS, REFERENCES
 from .plan import n_steps
 from .spec import Spec
@@ -112,10 +112,7 @@ def _sources_key() -> str | None:
     package (with its path): the same key, the same `code_digest`. None if one cannot be read."""
     h = hashlib.sha256(f"ballsurvey {__version__}\0{platform.python_version()}\0".encode())
     try:
-        for f in sorted(PACKAGE.rglob("*.py")):
-            data = f.read_bytes()
-            h.update(f.relative_to(PACKAGE).as_posix().encode() + b"\0")
-            h.update(len(data).to_bytes(8, "little") + data)
+        _jit.hash_files(h, sorted(PACKAGE.rglob("*.py")), PACKAGE)
     except OSError:
         return None
     return h.hexdigest()
