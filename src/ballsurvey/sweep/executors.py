@@ -220,10 +220,20 @@ def run_dask(client, spec: Spec, chunks: list, todo: list, finished, wait_s: flo
         report.update(workers_start_s=t_warm, n_workers=len(codes), worker_times=total)
 
 
-def _local_worker_plugin():
+def _distributed_log_level() -> int:
+    """The level below which the local cluster's processes keep distributed's logs to
+    themselves: ERROR, or higher where this process silenced distributed (the CLI does, but
+    for -vv)."""
+    return max(logging.ERROR, logging.getLogger("distributed").getEffectiveLevel())
+
+
+def _local_worker_plugin(log_level: int = logging.ERROR):
     """A dask worker plugin for the workers of a local cluster (started for this run, closed
     with it), those started later included: SIGINT ignored (set up in the worker's main thread);
-    and at the worker's close, the objects alive then left out of its process's garbage
+    distributed's and tornado's loggers in the worker at `log_level` (a worker whose heartbeat
+    meets a scheduler closing after a Ctrl-C logs a traceback at ERROR, and `silence_logs`
+    reaches only the nanny's logger there; what a lost worker means reaches the run as one line
+    of ours); and at the worker's close, the objects alive then left out of its process's garbage
     collections at exit (`gc.freeze`): those collections walk every object of numba, xarray and
     pandas, and made closing a cluster of two workers take 0.4-0.9 s instead of 0.05-0.09 s
     (2-core, shared). A worker's results are back in this process by then."""
@@ -236,6 +246,10 @@ def _local_worker_plugin():
             import signal
 
             signal.signal(signal.SIGINT, signal.SIG_IGN)
+            for name in list(logging.root.manager.loggerDict) + ["distributed", "tornado"]:
+                if name.split(".")[0] in ("distributed", "tornado"):
+                    logging.getLogger(name).setLevel(max(log_level,
+                                                         logging.getLogger(name).level))
 
         def teardown(self, worker):
             import gc
@@ -305,12 +319,14 @@ def _local_cluster(workers: int):
         # start a cluster of its own; it stops, and the run below says why
         raise SystemExit(UNGUARDED)
     # no dashboard, and the scheduler's small HTTP server on a free port (by default it
-    # takes 8787 and warns when that is busy); the cluster's own logs only for errors
+    # takes 8787 and warns when that is busy); the cluster's own logs only for errors, or
+    # none where this process silenced distributed (see _local_worker_plugin)
+    level = _distributed_log_level()
     try:
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                host="127.0.0.1", dashboard_address=None,
                                scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
-                               silence_logs=logging.ERROR)
+                               silence_logs=level)
     except Exception as exc:  # noqa: BLE001 - distributed raises many kinds; one line
         raise RunError(f"the local dask cluster of {workers} workers did not start "
                        f"({type(exc).__name__}: {str(exc)[:120]}); {UNGUARDED_HINT}") from None
@@ -319,7 +335,7 @@ def _local_cluster(workers: int):
         # a Ctrl-C at the terminal reaches every process of the group: the workers of this
         # cluster leave it to this process, which keeps what came back and closes them (a
         # worker plugin: a worker started again after a loss ignores it too)
-        client.register_plugin(_local_worker_plugin())
+        client.register_plugin(_local_worker_plugin(level))
     except BaseException:
         cluster.close()
         raise
