@@ -129,3 +129,21 @@ def test_step_observer_labels_and_fields_match_dense_rk4(box_pair):
     assert np.allclose(new["min_normal_force_ratio"], ref["min_normal_force_ratio"], rtol=3e-3)
     # and enough points a cycle to pass the sampling floor: three a step
     assert (new["samples_per_cycle"][shaped] >= 20).all()
+
+
+def test_a_run_of_no_time_observes_the_launch_alone():
+    # T = 0 (the API allows it): no step, the launch its only point, as the sampling observer
+    # on RK4 sees it (the Euler form's forces at the launch)
+    th0 = np.array([10.0, 40.0])
+    y0 = launch_state(th0, 0.3, 5.0, -2.0, TU)
+    p = np.repeat(P[:, None], 2, 1)
+    ref = classify(run_launches(y0, p, StepPlan(0.0, 1e-4, TU), "rk4", observe_every=1),
+                   BALL.flat_face_theta_rad)
+    res = run_launches(y0, p, StepPlan(0.0, 1e-4, TU), "dop853")
+    new = classify(res, BALL.flat_face_theta_rad)
+    assert (res.n_steps == 0).all()
+    assert (new["label"] == CODE["unresolved"]).all()
+    assert np.allclose(new["theta_min_deg"], th0, rtol=0, atol=1e-12)
+    assert np.allclose(new["theta_max_deg"], th0, rtol=0, atol=1e-12)
+    assert np.allclose(new["max_friction_ratio"], ref["max_friction_ratio"], rtol=1e-12)
+    assert np.allclose(new["min_normal_force_ratio"], ref["min_normal_force_ratio"], rtol=1e-12)
