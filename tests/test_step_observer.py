@@ -147,3 +147,22 @@ def test_a_run_of_no_time_observes_the_launch_alone():
     assert np.allclose(new["theta_max_deg"], th0, rtol=0, atol=1e-12)
     assert np.allclose(new["max_friction_ratio"], ref["max_friction_ratio"], rtol=1e-12)
     assert np.allclose(new["min_normal_force_ratio"], ref["min_normal_force_ratio"], rtol=1e-12)
+
+
+def test_a_ball_rocking_along_a_line_is_near_straight():
+    # no spin (chidot0 = phidot0 = 0): the ball rocks in a vertical plane and G runs back and
+    # forth along a line, its velocity reversing through zero once a cycle. That reversal is a
+    # cusp, not a turn, so the cycle turns by less than a quarter turn and the retraced line is
+    # `near_straight` (docs/labels.md), as the sampling observer on RK4 (and its fixed-frame
+    # run through the vertical) has it
+    th0 = np.array([10.0, 30.0, 50.0, 70.0])
+    y0 = launch_state(th0, 0.5, 0.0, 0.0, TU)
+    p = np.repeat(P[:, None], th0.size, 1)
+    ref = classify(run_launches(y0, p, StepPlan(3.0, 1e-4, TU), "rk4", observe_every=1,
+                                cycles=2), BALL.flat_face_theta_rad)
+    new = classify(run_launches(y0, p, StepPlan(3.0, 1e-3, TU), "dop853", cycles=2),
+                   BALL.flat_face_theta_rad)
+    assert (ref["label"] == CODE["near_straight"]).all()
+    assert np.array_equal(new["label"], ref["label"])
+    # a line: the chord between theta maxima is a rounding-sized part of the distance rolled
+    assert (new["chord_m"] < 1e-4).all()  # in radii (classify is non-dimensional)

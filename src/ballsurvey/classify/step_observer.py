@@ -8,24 +8,26 @@ interpolant is made of), and fills the same slots, so `labels.label_fields` read
 unchanged. Its cost follows the steps (about fifteen a theta cycle for DOP853 at rtol 1e-9):
 
 * theta extrema are roots of e_z' (sin theta = -e_z, chart-free), found from the sign of e_z' at
-  the step's two ends and located on the cubic Hermite interpolant of e_z' (values e_z', slopes
-  e_z'' at both ends); the axis, G's position and G's velocity are read from their interpolants
-  there, and the cycle is closed as the sampling observer closes it (`on_maximum`,
-  `on_minimum`). A step with an extremum is split there, so each cycle's sums end at the event;
+  the step's two ends and located on the quintic Hermite interpolant of e_z (values, rates e_z'
+  and accelerations e_z'' at both ends); the axis, G's position and G's velocity are read from
+  their quintic interpolants there, and the cycle is closed as the sampling observer closes it
+  (`on_maximum`, `on_minimum`). A step with an extremum is split there, so each cycle's sums end
+  at the event;
 * per piece of a step (the whole step, or its parts either side of an extremum) G's velocity and
-  acceleration at its middle and end come from the cubic Hermite interpolant of G's velocity
-  (values x', y', slopes a_G at both ends), G's position from that of x, y:
-  - the distance rolled: Simpson's rule on the speed (the interpolant's error, not the rule's,
-    bounds it);
-  - the heading's turn: the angle between G's velocities at the piece's two ends, exact while the
-    velocity turns by less than a quarter turn each half piece; where it turns faster (a loop, or
-    a cusp where the speed passes near zero) the piece is cut into SUBPIECES and the angles
-    between successive velocities summed. The absolute turn sums the halves where the heading
-    rate changes sign;
-  - the peak heading rate and the least speed over the piece's three points, and where the
-    middle is the slowest, at the vertex of the parabola through the three speeds squared (the
-    speed's minimum near a cusp);
-  - the distance from the orbit centre at the middle and end (its least and largest values:
+  acceleration at POINTS evenly spaced points after the piece's start come from the cubic
+  Hermite interpolant of G's velocity (values x', y', slopes a_G at both ends), G's position
+  from that of x, y:
+  - the distance rolled: Simpson's 3/8 rule on the speed (the interpolant's error, not the
+    rule's, bounds it);
+  - the heading's turn: Simpson's 3/8 rule on the heading rate and on its absolute value, while
+    the speed stays within a factor of two over the piece's points and the velocity turns by
+    less than a quarter turn between them; elsewhere (a loop, or a cusp where the speed passes
+    near zero) the piece is cut into SUBPIECES and the angles between successive velocities
+    summed. A velocity reversing between two sub-points (over CUSP_FLIP) passed through, or next
+    to, zero speed: its half turn counts in the signed turn but not in the absolute one;
+  - the peak heading rate and the least speed over the piece's points (and its sub-points where
+    it was cut);
+  - the distance from the orbit centre at each point (its least and largest values:
     roundness);
 * at each step's end: the invariants' drift, the friction demand |F_h|/N and N/(M g) (exact
   there: the state's rate is the right-hand side), and the change of sin theta (theta's largest
@@ -57,6 +59,11 @@ SUBPIECES = 8
 #: LOCATE_MAX)
 LOCATE_TOL = 1e-13
 LOCATE_MAX = 60
+#: the velocity turning by more than this (a quarter turn) between two sub-points reverses
+#: through, or next to, zero speed: a cusp, whose flip of the heading is left out of the absolute
+#: turn (a ball rocking along a line turns only there: the labeller's retraced line), as the
+#: sampling observer leaves out a jump of two quadrants
+CUSP_FLIP = 0.5 * math.pi
 
 
 @jit
@@ -291,7 +298,8 @@ def observe_step(obs, i, t0, h, ya, fa, yb, fb, c, A, B, last):
                                                 vya, axa, aya, xb, y_b, vxb, vyb, axb, ayb)
                 d = math.atan2(pvx * qy - pvy * qx, pvx * qx + pvy * qy)
                 rot += d
-                var += abs(d)
+                if abs(d) <= CUSP_FLIP:  # a reversal is a cusp, not a turn
+                    var += abs(d)
                 pvx, pvy = qx, qy
                 s2, ps = _rate(qx, qy, qax, qay)
                 slow = min(slow, math.sqrt(s2))
