@@ -166,3 +166,23 @@ def test_a_ball_rocking_along_a_line_is_near_straight():
     assert np.array_equal(new["label"], ref["label"])
     # a line: the chord between theta maxima is a rounding-sized part of the distance rolled
     assert (new["chord_m"] < 1e-4).all()  # in radii (classify is non-dimensional)
+
+
+def test_a_dip_of_the_normal_force_inside_a_step_is_seen():
+    # a fast-spinning launch whose normal force dips to just below zero (lift-off) for a moment
+    # shorter than a DOP853 step: the least N / (M g) on the step's interpolant, against the
+    # sampling observer on RK4 at every 1e-5 s (its samples' miss of the dip: under 1e-7)
+    s = 1.1054
+    y0 = launch_state(-13.009281083241618, -7.090800924781462, s * 37.83075335940548,
+                      s * -71.88735115643672, TU)
+    p = P[:, None].copy()
+    ref = classify(run_launches(y0, p, StepPlan(2.0, 1e-5, TU), "rk4", observe_every=1,
+                                cycles=2), BALL.flat_face_theta_rad)
+    n_ref = ref["min_normal_force_ratio"][0]
+    assert -2e-3 < n_ref < 0.0
+    assert ref["label"][0] == CODE["lift_off"]
+    for rtol in (1e-9, 1e-10, 1e-12):
+        new = classify(run_launches(y0, p, StepPlan(2.0, 1e-3, TU), "dop853", cycles=2,
+                                    rtol=rtol), BALL.flat_face_theta_rad)
+        assert abs(new["min_normal_force_ratio"][0] - n_ref) < 2e-5
+        assert new["label"][0] == CODE["lift_off"]

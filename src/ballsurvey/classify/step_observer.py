@@ -30,9 +30,11 @@ unchanged. Its cost follows the steps (about fifteen a theta cycle for DOP853 at
   - the distance from the orbit centre at each point (its least and largest values:
     roundness);
 * at each step's end: the invariants' drift, the friction demand |F_h|/N and N/(M g) (exact
-  there: the state's rate is the right-hand side), and the change of sin theta (theta's largest
-  change between points, from below: the observer's aliasing guard); theta itself at the launch,
-  at its extrema and at the run's last step, beyond which it cannot reach.
+  there: the state's rate is the right-hand side); inside the step, N/(M g) = 1 + c e_z'' at its
+  least on the quintic interpolant of e_z (whose second derivative is a cubic) and |F_h|/N
+  there (a dip towards lift-off can be narrower than a step); and the change of sin theta
+  (theta's largest change between points, from below: the observer's aliasing guard); theta
+  itself at the launch, at its extrema and at the run's last step, beyond which it cannot reach.
 
 Points: each piece counts POINTS towards `samples_per_cycle`. The heading chi at a theta maximum
 is kept within half a turn of the last maximum's (then set to agree with the path's heading, as
@@ -174,6 +176,32 @@ def _axis_acceleration(y, f):
     return ((f[WY] * ez - f[WZ] * ey) + (wy * f[EZ] - wz * f[EY]),
             (f[WZ] * ex - f[WX] * ez) + (wz * f[EX] - wx * f[EZ]),
             (f[WX] * ey - f[WY] * ex) + (wx * f[EY] - wy * f[EX]))
+
+
+@jit
+def _least_ezdd(h, eza, ezb, pa, pb, qa, qb):
+    """(u, e_z'') at the least e_z'' over [0, 1] of a step of length h on the second derivative of
+    e_z's quintic Hermite interpolant (values eza, ezb, rates pa, pb, accelerations qa, qb at its
+    ends): a cubic in u, whose least value lies at an end or where its derivative, a quadratic,
+    vanishes."""
+    d = ezb - eza
+    a1 = 60.0 * d / (h * h) - (36.0 * pa + 24.0 * pb) / h - 9.0 * qa + 3.0 * qb
+    a2 = -180.0 * d / (h * h) + (96.0 * pa + 84.0 * pb) / h + 18.0 * qa - 12.0 * qb
+    a3 = 120.0 * d / (h * h) - 60.0 * (pa + pb) / h - 10.0 * qa + 10.0 * qb
+    best_u, best = 0.0, qa
+    if qb < best:
+        best_u, best = 1.0, qb
+    # roots of a1 + 2 a2 u + 3 a3 u^2 (the stable form of the quadratic formula)
+    qa_, qb_, qc_ = 3.0 * a3, 2.0 * a2, a1
+    disc = qb_ * qb_ - 4.0 * qa_ * qc_
+    if disc >= 0.0:
+        q = -0.5 * (qb_ + math.copysign(math.sqrt(disc), qb_))
+        for r in ((q / qa_ if qa_ != 0.0 else -1.0), (qc_ / q if q != 0.0 else -1.0)):
+            if 0.0 < r < 1.0:
+                v = qa + r * (a1 + r * (a2 + r * a3))
+                if v < best:
+                    best_u, best = r, v
+    return best_u, best
 
 
 @jit
@@ -327,6 +355,16 @@ def observe_step(obs, i, t0, h, ya, fa, yb, fb, c, A, B, last):
     obs[ob.O_DR, i] = max(obs[ob.O_DR, i], abs(rou - obs[ob.O_R0, i]))
     obs[ob.O_FRIC, i] = max(obs[ob.O_FRIC, i], fric)
     obs[ob.O_NMIN, i] = min(obs[ob.O_NMIN, i], normal)
+    # the least normal force inside the step (a brief dip towards lift-off, narrower than a
+    # step), on the interpolant of e_z'' (N / (M g) = 1 + c e_z''), and the friction demand there
+    u_n, ezdd_n = _least_ezdd(h, ya[EZ], yb[EZ], pa, pb, ezdda, ezddb)
+    if 0.0 < u_n < 1.0:
+        normal_n = 1.0 + c * ezdd_n
+        _, _, qax, qay, _, _ = _point(u_n, h, xa, y_a, vxa, vya, axa, aya, xb, y_b, vxb, vyb,
+                                      axb, ayb)
+        obs[ob.O_NMIN, i] = min(obs[ob.O_NMIN, i], normal_n)
+        obs[ob.O_FRIC, i] = max(obs[ob.O_FRIC, i], math.sqrt(qax * qax + qay * qay) / normal_n
+                                if normal_n > 0.0 else math.inf)
     if last:  # theta between extrema: only the run's end can be beyond those located
         th, _ = _tilt(yb)
         obs[ob.O_TH_MIN, i] = min(obs[ob.O_TH_MIN, i], th)
