@@ -186,3 +186,18 @@ def test_a_dip_of_the_normal_force_inside_a_step_is_seen():
                                     rtol=rtol), BALL.flat_face_theta_rad)
         assert abs(new["min_normal_force_ratio"][0] - n_ref) < 2e-5
         assert new["label"][0] == CODE["lift_off"]
+
+
+def test_the_friction_demand_peaks_between_step_ends_are_seen():
+    # a fast-spinning launch: its peak |F_h|/N falls between DOP853's step ends (read there alone
+    # it was 3.5e-3 low at rtol 1e-9 and 1e-11); against the sampling observer on RK4 at every
+    # 1e-5 s (within 1e-7 of it at 1e-4 s)
+    y0 = launch_state(10.648994166242737, 8.898963422899591, 37.263219638069415,
+                      -26.77096652618802, TU)
+    p = P[:, None].copy()
+    ref = classify(run_launches(y0, p, StepPlan(2.0, 1e-5, TU), "rk4", observe_every=1,
+                                cycles=2), BALL.flat_face_theta_rad)["max_friction_ratio"][0]
+    for rtol in (1e-9, 1e-11, 1e-12):
+        new = classify(run_launches(y0, p, StepPlan(2.0, 1e-3, TU), "dop853", cycles=2,
+                                    rtol=rtol), BALL.flat_face_theta_rad)["max_friction_ratio"][0]
+        assert abs(new - ref) < 5e-4 * ref

@@ -30,9 +30,10 @@ unchanged. Its cost follows the steps (about fifteen a theta cycle for DOP853 at
   - the distance from the orbit centre at each point (its least and largest values:
     roundness);
 * at each step's end: the invariants' drift, the friction demand |F_h|/N and N/(M g) (exact
-  there: the state's rate is the right-hand side); inside the step, N/(M g) = 1 + c e_z'' at its
-  least on the quintic interpolant of e_z (whose second derivative is a cubic) and |F_h|/N
-  there (a dip towards lift-off can be narrower than a step); and the change of sin theta
+  there: the state's rate is the right-hand side); inside the step, from the quintic
+  interpolants of e_z, x and y (whose second derivatives are cubics), N/(M g) = 1 + c e_z'' at
+  its least (a dip towards lift-off can be narrower than a step) and |F_h|/N = |a_G|/N there
+  and at each point of the pieces (its peaks fall between step ends); and the change of sin theta
   (theta's largest change between points, from below: the observer's aliasing guard); theta
   itself at the launch, at its extrema and at the run's last step, beyond which it cannot reach.
 
@@ -179,15 +180,21 @@ def _axis_acceleration(y, f):
 
 
 @jit
-def _least_ezdd(h, eza, ezb, pa, pb, qa, qb):
-    """(u, e_z'') at the least e_z'' over [0, 1] of a step of length h on the second derivative of
-    e_z's quintic Hermite interpolant (values eza, ezb, rates pa, pb, accelerations qa, qb at its
-    ends): a cubic in u, whose least value lies at an end or where its derivative, a quadratic,
-    vanishes."""
-    d = ezb - eza
-    a1 = 60.0 * d / (h * h) - (36.0 * pa + 24.0 * pb) / h - 9.0 * qa + 3.0 * qb
-    a2 = -180.0 * d / (h * h) + (96.0 * pa + 84.0 * pb) / h + 18.0 * qa - 12.0 * qb
-    a3 = 120.0 * d / (h * h) - 60.0 * (pa + pb) / h - 10.0 * qa + 10.0 * qb
+def _ezdd_cubic(h, eza, ezb, pa, pb, qa, qb):
+    """(a1, a2, a3): the second derivative of e_z's quintic Hermite interpolant over a step of
+    length h (values eza, ezb, rates pa, pb, accelerations qa, qb at its ends), qa + a1 u +
+    a2 u^2 + a3 u^3 at u in [0, 1]."""
+    d = (ezb - eza) / (h * h)
+    a1 = 60.0 * d - (36.0 * pa + 24.0 * pb) / h - 9.0 * qa + 3.0 * qb
+    a2 = -180.0 * d + (96.0 * pa + 84.0 * pb) / h + 18.0 * qa - 12.0 * qb
+    a3 = 120.0 * d - 60.0 * (pa + pb) / h - 10.0 * qa + 10.0 * qb
+    return a1, a2, a3
+
+
+@jit
+def _least_ezdd(qa, qb, a1, a2, a3):
+    """(u, e_z'') at the least of the cubic qa + a1 u + a2 u^2 + a3 u^3 over [0, 1] (qb at u = 1):
+    at an end or where its derivative, a quadratic, vanishes."""
     best_u, best = 0.0, qa
     if qb < best:
         best_u, best = 1.0, qb
@@ -202,6 +209,16 @@ def _least_ezdd(h, eza, ezb, pa, pb, qa, qb):
                 if v < best:
                     best_u, best = r, v
     return best_u, best
+
+
+@jit
+def _friction(u, c, q, c1, c2, c3, ax, x1, x2, x3, ay, y1, y2, y3):
+    """|F_h|/N = |a_G|/N at u in [0, 1] of a step, from the cubics of e_z'', a_x and a_y
+    (`_ezdd_cubic`; q, ax, ay: their values at the step's start); inf where N <= 0."""
+    normal = 1.0 + c * (q + u * (c1 + u * (c2 + u * c3)))
+    gx = ax + u * (x1 + u * (x2 + u * x3))
+    gy = ay + u * (y1 + u * (y2 + u * y3))
+    return math.sqrt(gx * gx + gy * gy) / normal if normal > 0.0 else math.inf
 
 
 @jit
@@ -270,6 +287,11 @@ def observe_step(obs, i, t0, h, ya, fa, yb, fb, c, A, B, last):
         kind = 1
     elif pa > 0.0 and pb <= 0.0:
         kind = -1
+    # e_z'' and G's horizontal acceleration inside the step (N/(M g) = 1 + c e_z'', |F_h|/N =
+    # |a_G|/N): the cubics of the quintic interpolants of e_z, x and y
+    c1, c2, c3 = _ezdd_cubic(h, ya[EZ], yb[EZ], pa, pb, ezdda, ezddb)
+    x1, x2, x3 = _ezdd_cubic(h, xa, xb, vxa, vxb, axa, axb)
+    y1, y2, y3 = _ezdd_cubic(h, y_a, y_b, vya, vyb, aya, ayb)
     tau = 1.0
     if kind != 0:
         tau, th_ev, chi_ev, x_ev, y_ev, vx_ev, vy_ev = _event(
@@ -295,9 +317,13 @@ def observe_step(obs, i, t0, h, ya, fa, yb, fb, c, A, B, last):
             if k == POINTS and u1 == 1.0:  # the step's end: exact
                 vx, vy, px, py, s2, ps = vxb, vyb, xb, y_b, sb_end * sb_end, psidb_end
             else:
-                vx, vy, qax, qay, px, py = _point(u0 + (u1 - u0) * k / POINTS, h, xa, y_a, vxa,
-                                                  vya, axa, aya, xb, y_b, vxb, vyb, axb, ayb)
+                u = u0 + (u1 - u0) * k / POINTS
+                vx, vy, qax, qay, px, py = _point(u, h, xa, y_a, vxa, vya, axa, aya, xb, y_b,
+                                                  vxb, vyb, axb, ayb)
                 s2, ps = _rate(vx, vy, qax, qay)
+                # the friction demand here (its peak can fall between steps' ends)
+                fric = max(fric, _friction(u, c, ezdda, c1, c2, c3, axa, x1, x2, x3, aya, y1, y2,
+                                           y3))
             sp = math.sqrt(s2)
             wt = 1.0 if k == POINTS else 3.0
             v_int += wt * sp
@@ -357,14 +383,11 @@ def observe_step(obs, i, t0, h, ya, fa, yb, fb, c, A, B, last):
     obs[ob.O_NMIN, i] = min(obs[ob.O_NMIN, i], normal)
     # the least normal force inside the step (a brief dip towards lift-off, narrower than a
     # step), on the interpolant of e_z'' (N / (M g) = 1 + c e_z''), and the friction demand there
-    u_n, ezdd_n = _least_ezdd(h, ya[EZ], yb[EZ], pa, pb, ezdda, ezddb)
+    u_n, ezdd_n = _least_ezdd(ezdda, ezddb, c1, c2, c3)
     if 0.0 < u_n < 1.0:
-        normal_n = 1.0 + c * ezdd_n
-        _, _, qax, qay, _, _ = _point(u_n, h, xa, y_a, vxa, vya, axa, aya, xb, y_b, vxb, vyb,
-                                      axb, ayb)
-        obs[ob.O_NMIN, i] = min(obs[ob.O_NMIN, i], normal_n)
-        obs[ob.O_FRIC, i] = max(obs[ob.O_FRIC, i], math.sqrt(qax * qax + qay * qay) / normal_n
-                                if normal_n > 0.0 else math.inf)
+        obs[ob.O_NMIN, i] = min(obs[ob.O_NMIN, i], 1.0 + c * ezdd_n)
+        obs[ob.O_FRIC, i] = max(obs[ob.O_FRIC, i], _friction(u_n, c, ezdda, c1, c2, c3, axa, x1,
+                                                             x2, x3, aya, y1, y2, y3))
     if last:  # theta between extrema: only the run's end can be beyond those located
         th, _ = _tilt(yb)
         obs[ob.O_TH_MIN, i] = min(obs[ob.O_TH_MIN, i], th)
