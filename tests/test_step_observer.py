@@ -123,10 +123,11 @@ def test_step_observer_labels_and_fields_match_dense_rk4(box_pair):
     assert np.allclose(a[near], b[near], rtol=2e-2)
     assert np.array_equal(a >= Thresholds().star_sharpness_min,
                           b >= Thresholds().star_sharpness_min)
-    # the forces the validity checks read (at step ends only: the peaks between them are
-    # missed by at most the interpolant's slope error, a few 1e-4)
-    assert np.allclose(new["max_friction_ratio"], ref["max_friction_ratio"], rtol=3e-3)
-    assert np.allclose(new["min_normal_force_ratio"], ref["min_normal_force_ratio"], rtol=3e-3)
+    # the forces the validity checks read (at step ends, at three points a piece and at the
+    # normal force's least inside a step: a peak between points is missed by its curvature over
+    # a sixth of a step, under 5e-4)
+    assert np.allclose(new["max_friction_ratio"], ref["max_friction_ratio"], rtol=5e-4)
+    assert np.allclose(new["min_normal_force_ratio"], ref["min_normal_force_ratio"], rtol=2e-5)
     # and enough points a cycle to pass the sampling floor: three a step
     assert (new["samples_per_cycle"][shaped] >= 20).all()
 
