@@ -202,3 +202,22 @@ def test_the_friction_demand_peaks_between_step_ends_are_seen():
         new = classify(run_launches(y0, p, StepPlan(2.0, 1e-3, TU), "dop853", cycles=2,
                                     rtol=rtol), BALL.flat_face_theta_rad)["max_friction_ratio"][0]
         assert abs(new - ref) < 5e-4 * ref
+
+
+def test_a_very_short_step_adds_no_rounding_to_the_forces():
+    # a run of 1e-12 s is one step of that length (as short as a last step cut to end at T can
+    # be): the forces inside it are those at its ends, as RK4's sampling observer has them, not
+    # the rounding of the values' difference over the step squared
+    rng = np.random.default_rng(8)
+    n = 6
+    y0 = launch_state(rng.uniform(-20, 60, n), rng.uniform(-2, 2, n), rng.uniform(-12, 12, n),
+                      rng.uniform(-8, 8, n), TU)
+    p = np.repeat(P[:, None], n, 1)
+    ref = classify(run_launches(y0, p, StepPlan(1e-12, 1e-4, TU), "rk4", observe_every=1),
+                   BALL.flat_face_theta_rad)
+    new = classify(run_launches(y0, p, StepPlan(1e-12, 1e-3, TU), "dop853"),
+                   BALL.flat_face_theta_rad)
+    assert np.array_equal(new["label"], ref["label"])
+    assert (new["label"] == CODE["unresolved"]).all()
+    for f in ("max_friction_ratio", "min_normal_force_ratio"):
+        assert np.allclose(new[f], ref[f], rtol=1e-9)

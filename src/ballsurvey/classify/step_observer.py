@@ -67,6 +67,10 @@ LOCATE_MAX = 60
 #: turn (a ball rocking along a line turns only there: the labeller's retraced line), as the
 #: sampling observer leaves out a jump of two quadrants
 CUSP_FLIP = 0.5 * math.pi
+#: the largest rounding error (non-dimensional acceleration) let into the second derivatives of
+#: the quintic interpolants, which divide the values' difference by the step squared
+CUBIC_NOISE = 1e-7
+EPS = 2.0 ** -52
 
 
 @jit
@@ -183,7 +187,11 @@ def _axis_acceleration(y, f):
 def _ezdd_cubic(h, eza, ezb, pa, pb, qa, qb):
     """(a1, a2, a3): the second derivative of e_z's quintic Hermite interpolant over a step of
     length h (values eza, ezb, rates pa, pb, accelerations qa, qb at its ends), qa + a1 u +
-    a2 u^2 + a3 u^3 at u in [0, 1]."""
+    a2 u^2 + a3 u^3 at u in [0, 1]. Where the values' rounding, amplified by 1/h^2, could reach
+    CUBIC_NOISE (a very short step: the last one, cut to end at T), the straight line between qa
+    and qb."""
+    if 360.0 * EPS * max(abs(eza), abs(ezb)) > CUBIC_NOISE * h * h:
+        return qb - qa, 0.0, 0.0
     d = (ezb - eza) / (h * h)
     a1 = 60.0 * d - (36.0 * pa + 24.0 * pb) / h - 9.0 * qa + 3.0 * qb
     a2 = -180.0 * d + (96.0 * pa + 84.0 * pb) / h + 18.0 * qa - 12.0 * qb
