@@ -184,12 +184,12 @@ def _axis_acceleration(y, f):
 
 
 @jit
-def _ezdd_cubic(h, eza, ezb, pa, pb, qa, qb):
-    """(a1, a2, a3): the second derivative of e_z's quintic Hermite interpolant over a step of
-    length h (values eza, ezb, rates pa, pb, accelerations qa, qb at its ends), qa + a1 u +
-    a2 u^2 + a3 u^3 at u in [0, 1]. Where the values' rounding, amplified by 1/h^2, could reach
-    CUBIC_NOISE (a very short step: the last one, cut to end at T), the straight line between qa
-    and qb."""
+def _accel_cubic(h, eza, ezb, pa, pb, qa, qb):
+    """(a1, a2, a3): the second derivative of a quintic Hermite interpolant (of e_z, x or y) over
+    a step of length h (values eza, ezb, rates pa, pb, accelerations qa, qb at its ends), qa +
+    a1 u + a2 u^2 + a3 u^3 at u in [0, 1]. Where the values' rounding, amplified by 1/h^2, could
+    reach CUBIC_NOISE (a very short step: the last one, cut to end at T), the straight line
+    between qa and qb."""
     if 360.0 * EPS * max(abs(eza), abs(ezb)) > CUBIC_NOISE * h * h:
         return qb - qa, 0.0, 0.0
     d = (ezb - eza) / (h * h)
@@ -222,7 +222,7 @@ def _least_ezdd(qa, qb, a1, a2, a3):
 @jit
 def _friction(u, c, q, c1, c2, c3, ax, x1, x2, x3, ay, y1, y2, y3):
     """|F_h|/N = |a_G|/N at u in [0, 1] of a step, from the cubics of e_z'', a_x and a_y
-    (`_ezdd_cubic`; q, ax, ay: their values at the step's start); inf where N <= 0."""
+    (`_accel_cubic`; q, ax, ay: their values at the step's start); inf where N <= 0."""
     normal = 1.0 + c * (q + u * (c1 + u * (c2 + u * c3)))
     gx = ax + u * (x1 + u * (x2 + u * x3))
     gy = ay + u * (y1 + u * (y2 + u * y3))
@@ -297,9 +297,9 @@ def observe_step(obs, i, t0, h, ya, fa, yb, fb, c, A, B, last):
         kind = -1
     # e_z'' and G's horizontal acceleration inside the step (N/(M g) = 1 + c e_z'', |F_h|/N =
     # |a_G|/N): the cubics of the quintic interpolants of e_z, x and y
-    c1, c2, c3 = _ezdd_cubic(h, ya[EZ], yb[EZ], pa, pb, ezdda, ezddb)
-    x1, x2, x3 = _ezdd_cubic(h, xa, xb, vxa, vxb, axa, axb)
-    y1, y2, y3 = _ezdd_cubic(h, y_a, y_b, vya, vyb, aya, ayb)
+    c1, c2, c3 = _accel_cubic(h, ya[EZ], yb[EZ], pa, pb, ezdda, ezddb)
+    x1, x2, x3 = _accel_cubic(h, xa, xb, vxa, vxb, axa, axb)
+    y1, y2, y3 = _accel_cubic(h, y_a, y_b, vya, vyb, aya, ayb)
     tau = 1.0
     if kind != 0:
         tau, th_ev, chi_ev, x_ev, y_ev, vx_ev, vy_ev = _event(
