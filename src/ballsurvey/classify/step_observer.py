@@ -8,29 +8,34 @@ interpolant is made of), and fills the same slots, so `labels.label_fields` read
 unchanged. Its cost follows the steps (about fifteen a theta cycle for DOP853 at rtol 1e-9):
 
 * theta extrema are roots of e_z' (sin theta = -e_z, chart-free), found from the sign of e_z' at
-  the step's two ends and located on the cubic Hermite interpolant of e_z' (values e_z', slopes
-  e_z'' at both ends); the axis, G's position and G's velocity are read from their interpolants
-  there, and the cycle is closed as the sampling observer closes it (`on_maximum`,
-  `on_minimum`). A step with an extremum is split there, so each cycle's sums end at the event;
+  the step's two ends and located on the quintic Hermite interpolant of e_z (values, rates e_z'
+  and accelerations e_z'' at both ends); the axis, G's position and G's velocity are read from
+  their quintic interpolants there, and the cycle is closed as the sampling observer closes it
+  (`on_maximum`, `on_minimum`). A step with an extremum is split there, so each cycle's sums end
+  at the event;
 * per piece of a step (the whole step, or its parts either side of an extremum) G's velocity and
-  acceleration at its middle and end come from the cubic Hermite interpolant of G's velocity
-  (values x', y', slopes a_G at both ends), G's position from that of x, y:
-  - the distance rolled: Simpson's rule on the speed (the interpolant's error, not the rule's,
-    bounds it);
-  - the heading's turn: the angle between G's velocities at the piece's two ends, exact while the
-    velocity turns by less than a quarter turn each half piece; where it turns faster (a loop, or
-    a cusp where the speed passes near zero) the piece is cut into SUBPIECES and the angles
-    between successive velocities summed. The absolute turn sums the halves where the heading
-    rate changes sign;
-  - the peak heading rate and the least speed over the piece's three points, and where the
-    middle is the slowest, at the vertex of the parabola through the three speeds squared (the
-    speed's minimum near a cusp);
-  - the distance from the orbit centre at the middle and end (its least and largest values:
+  acceleration at POINTS evenly spaced points after the piece's start come from the cubic
+  Hermite interpolant of G's velocity (values x', y', slopes a_G at both ends), G's position
+  from that of x, y:
+  - the distance rolled: Simpson's 3/8 rule on the speed (the interpolant's error, not the
+    rule's, bounds it);
+  - the heading's turn: Simpson's 3/8 rule on the heading rate and on its absolute value, while
+    the speed stays within a factor of two over the piece's points and the velocity turns by
+    less than a quarter turn between them; elsewhere (a loop, or a cusp where the speed passes
+    near zero) the piece is cut into SUBPIECES and the angles between successive velocities
+    summed. A velocity reversing between two sub-points (over CUSP_FLIP) passed through, or next
+    to, zero speed: its half turn counts in the signed turn but not in the absolute one;
+  - the peak heading rate and the least speed over the piece's points (and its sub-points where
+    it was cut);
+  - the distance from the orbit centre at each point (its least and largest values:
     roundness);
 * at each step's end: the invariants' drift, the friction demand |F_h|/N and N/(M g) (exact
-  there: the state's rate is the right-hand side), and the change of sin theta (theta's largest
-  change between points, from below: the observer's aliasing guard); theta itself at the launch,
-  at its extrema and at the run's last step, beyond which it cannot reach.
+  there: the state's rate is the right-hand side); inside the step, from the quintic
+  interpolants of e_z, x and y (whose second derivatives are cubics), N/(M g) = 1 + c e_z'' at
+  its least (a dip towards lift-off can be narrower than a step) and |F_h|/N = |a_G|/N there
+  and at each point of the pieces (its peaks fall between step ends); and the change of sin theta
+  (theta's largest change between points, from below: the observer's aliasing guard); theta
+  itself at the launch, at its extrema and at the run's last step, beyond which it cannot reach.
 
 Points: each piece counts POINTS towards `samples_per_cycle`. The heading chi at a theta maximum
 is kept within half a turn of the last maximum's (then set to agree with the path's heading, as
@@ -57,6 +62,15 @@ SUBPIECES = 8
 #: LOCATE_MAX)
 LOCATE_TOL = 1e-13
 LOCATE_MAX = 60
+#: the velocity turning by more than this (a quarter turn) between two sub-points reverses
+#: through, or next to, zero speed: a cusp, whose flip of the heading is left out of the absolute
+#: turn (a ball rocking along a line turns only there: the labeller's retraced line), as the
+#: sampling observer leaves out a jump of two quadrants
+CUSP_FLIP = 0.5 * math.pi
+#: the largest rounding error (non-dimensional acceleration) let into the second derivatives of
+#: the quintic interpolants, which divide the values' difference by the step squared
+CUBIC_NOISE = 1e-7
+EPS = 2.0 ** -52
 
 
 @jit
@@ -170,6 +184,52 @@ def _axis_acceleration(y, f):
 
 
 @jit
+def _accel_cubic(h, eza, ezb, pa, pb, qa, qb):
+    """(a1, a2, a3): the second derivative of a quintic Hermite interpolant (of e_z, x or y) over
+    a step of length h (values eza, ezb, rates pa, pb, accelerations qa, qb at its ends), qa +
+    a1 u + a2 u^2 + a3 u^3 at u in [0, 1]. Where the values' rounding, amplified by 1/h^2, could
+    reach CUBIC_NOISE (a very short step: the last one, cut to end at T), the straight line
+    between qa and qb."""
+    if 360.0 * EPS * max(abs(eza), abs(ezb)) > CUBIC_NOISE * h * h:
+        return qb - qa, 0.0, 0.0
+    d = (ezb - eza) / (h * h)
+    a1 = 60.0 * d - (36.0 * pa + 24.0 * pb) / h - 9.0 * qa + 3.0 * qb
+    a2 = -180.0 * d + (96.0 * pa + 84.0 * pb) / h + 18.0 * qa - 12.0 * qb
+    a3 = 120.0 * d - 60.0 * (pa + pb) / h - 10.0 * qa + 10.0 * qb
+    return a1, a2, a3
+
+
+@jit
+def _least_ezdd(qa, qb, a1, a2, a3):
+    """(u, e_z'') at the least of the cubic qa + a1 u + a2 u^2 + a3 u^3 over [0, 1] (qb at u = 1):
+    at an end or where its derivative, a quadratic, vanishes."""
+    best_u, best = 0.0, qa
+    if qb < best:
+        best_u, best = 1.0, qb
+    # roots of a1 + 2 a2 u + 3 a3 u^2 (the stable form of the quadratic formula)
+    qa_, qb_, qc_ = 3.0 * a3, 2.0 * a2, a1
+    disc = qb_ * qb_ - 4.0 * qa_ * qc_
+    if disc >= 0.0:
+        q = -0.5 * (qb_ + math.copysign(math.sqrt(disc), qb_))
+        for r in ((q / qa_ if qa_ != 0.0 else -1.0), (qc_ / q if q != 0.0 else -1.0)):
+            if 0.0 < r < 1.0:
+                v = qa + r * (a1 + r * (a2 + r * a3))
+                if v < best:
+                    best_u, best = r, v
+    return best_u, best
+
+
+@jit
+def _friction(u, c, q, c1, c2, c3, ax, x1, x2, x3, ay, y1, y2, y3):
+    """|F_h|/N = |a_G|/N at u in [0, 1] of a step, from the cubics of e_z'', a_x and a_y
+    (`_accel_cubic`; q, ax, ay: their values at the step's start); inf where N <= 0."""
+    normal = 1.0 + c * (q + u * (c1 + u * (c2 + u * c3)))
+    gx = ax + u * (x1 + u * (x2 + u * x3))
+    gy = ay + u * (y1 + u * (y2 + u * y3))
+    return math.sqrt(gx * gx + gy * gy) / normal if normal > 0.0 else math.inf
+
+
+@jit
 def _event(obs, i, kind, t0, h, ya, fa, yb, fb, axa, aya, ezdda, axb, ayb, ezddb):
     """The theta extremum in a step whose ends' e_z' have opposite signs: located on the quintic
     Hermite interpolant of e_z (values, rates, accelerations at both ends: the root of its
@@ -235,6 +295,11 @@ def observe_step(obs, i, t0, h, ya, fa, yb, fb, c, A, B, last):
         kind = 1
     elif pa > 0.0 and pb <= 0.0:
         kind = -1
+    # e_z'' and G's horizontal acceleration inside the step (N/(M g) = 1 + c e_z'', |F_h|/N =
+    # |a_G|/N): the cubics of the quintic interpolants of e_z, x and y
+    c1, c2, c3 = _accel_cubic(h, ya[EZ], yb[EZ], pa, pb, ezdda, ezddb)
+    x1, x2, x3 = _accel_cubic(h, xa, xb, vxa, vxb, axa, axb)
+    y1, y2, y3 = _accel_cubic(h, y_a, y_b, vya, vyb, aya, ayb)
     tau = 1.0
     if kind != 0:
         tau, th_ev, chi_ev, x_ev, y_ev, vx_ev, vy_ev = _event(
@@ -260,9 +325,13 @@ def observe_step(obs, i, t0, h, ya, fa, yb, fb, c, A, B, last):
             if k == POINTS and u1 == 1.0:  # the step's end: exact
                 vx, vy, px, py, s2, ps = vxb, vyb, xb, y_b, sb_end * sb_end, psidb_end
             else:
-                vx, vy, qax, qay, px, py = _point(u0 + (u1 - u0) * k / POINTS, h, xa, y_a, vxa,
-                                                  vya, axa, aya, xb, y_b, vxb, vyb, axb, ayb)
+                u = u0 + (u1 - u0) * k / POINTS
+                vx, vy, qax, qay, px, py = _point(u, h, xa, y_a, vxa, vya, axa, aya, xb, y_b,
+                                                  vxb, vyb, axb, ayb)
                 s2, ps = _rate(vx, vy, qax, qay)
+                # the friction demand here (its peak can fall between steps' ends)
+                fric = max(fric, _friction(u, c, ezdda, c1, c2, c3, axa, x1, x2, x3, aya, y1, y2,
+                                           y3))
             sp = math.sqrt(s2)
             wt = 1.0 if k == POINTS else 3.0
             v_int += wt * sp
@@ -291,7 +360,8 @@ def observe_step(obs, i, t0, h, ya, fa, yb, fb, c, A, B, last):
                                                 vya, axa, aya, xb, y_b, vxb, vyb, axb, ayb)
                 d = math.atan2(pvx * qy - pvy * qx, pvx * qx + pvy * qy)
                 rot += d
-                var += abs(d)
+                if abs(d) <= CUSP_FLIP:  # a reversal is a cusp, not a turn
+                    var += abs(d)
                 pvx, pvy = qx, qy
                 s2, ps = _rate(qx, qy, qax, qay)
                 slow = min(slow, math.sqrt(s2))
@@ -319,6 +389,13 @@ def observe_step(obs, i, t0, h, ya, fa, yb, fb, c, A, B, last):
     obs[ob.O_DR, i] = max(obs[ob.O_DR, i], abs(rou - obs[ob.O_R0, i]))
     obs[ob.O_FRIC, i] = max(obs[ob.O_FRIC, i], fric)
     obs[ob.O_NMIN, i] = min(obs[ob.O_NMIN, i], normal)
+    # the least normal force inside the step (a brief dip towards lift-off, narrower than a
+    # step), on the interpolant of e_z'' (N / (M g) = 1 + c e_z''), and the friction demand there
+    u_n, ezdd_n = _least_ezdd(ezdda, ezddb, c1, c2, c3)
+    if 0.0 < u_n < 1.0:
+        obs[ob.O_NMIN, i] = min(obs[ob.O_NMIN, i], 1.0 + c * ezdd_n)
+        obs[ob.O_FRIC, i] = max(obs[ob.O_FRIC, i], _friction(u_n, c, ezdda, c1, c2, c3, axa, x1,
+                                                             x2, x3, aya, y1, y2, y3))
     if last:  # theta between extrema: only the run's end can be beyond those located
         th, _ = _tilt(yb)
         obs[ob.O_TH_MIN, i] = min(obs[ob.O_TH_MIN, i], th)

@@ -505,7 +505,8 @@ def integrate_observed(y0, params, T, rtol=1e-9, atol=1e-12, *, observer: StepOb
     """`integrate_lanes` with a step observer: `observer.start` sees each launch's fixed-frame
     state and rate at t = 0, `observer.step` each accepted step (its start time and length, the
     states and rates at both ends: what the step's cubic Hermite interpolant is made of), so the
-    observer's cost follows the steps.
+    observer's cost follows the steps. T = 0: the launch is observed and nothing stepped (h_init
+    is then not read).
 
     Lanes refill from a queue: a lane whose launch reaches T, fails, or (stop_after > 0, period
     mode) has `observer.done(obs, i, stop_after)` takes the next launch at once. Each launch's
@@ -514,7 +515,7 @@ def integrate_observed(y0, params, T, rtol=1e-9, atol=1e-12, *, observer: StepOb
     t_stop (time reached where the run failed), formulation FIXED_FRAME, y_end (Euler view of
     the last state, principal branches), n_steps accepted, traj the last fixed-frame state."""
     y0, params, n = _checked(y0, params, T, rtol, atol)
-    if not (0.0 < h_init < math.inf):
+    if T > 0.0 and not (0.0 < h_init < math.inf):  # T = 0 takes no step: the launch is all
         raise ValueError(f"h_init must be finite and > 0, got {h_init}")
     obs = np.full((max(int(n_slots), 1), n), np.nan)
     v_end = np.full((NV, n), np.nan)
