@@ -10,6 +10,8 @@ each concern has its own module:
 * `executors`: in this process, or on a dask.distributed cluster (and starting one);
 * `provenance`: the global attributes; `ballsurvey.store.write_netcdf`: the file itself.
 
+In this process, a chunk's part is saved by a background thread while the next chunk is
+computed (one part in flight, so parts are saved in chunk order; Ctrl-C and errors wait for it).
 When all chunks are done, the file is assembled from the parts one chunk at a time (memory
 bounded by the chunk size) in a private temporary folder, read back and checked, and renamed into
 place; only then are the parts removed.
@@ -256,8 +258,11 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
 
     One writer per output: the run holds `<output>.lock` for its whole life; a second run on the
     same output is refused (OutputBusy). On resume the recorded chunk plan is used and parts are
-    verified (those that fail are computed again). Parts are removed only once the final file is
-    in place and verified. Ctrl-C saves every finished unit of work and raises SweepInterrupted."""
+    verified (those that fail are computed again). In this process each part is saved in the
+    background while the next chunk runs, in chunk order; on_chunk(k) is called from this
+    thread once part k is on disk (after the next chunk is computed). Parts are removed only
+    once the final file is in place and verified. Ctrl-C saves every finished unit of work and
+    raises SweepInterrupted."""
     from tqdm import tqdm
 
     t_start = time.perf_counter()
