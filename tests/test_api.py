@@ -156,6 +156,25 @@ def test_units_of_work_are_bit_identical_to_one_kernel_call(tmp_path):
         assert np.array_equal(whole[k], got[k], equal_nan=True), k
 
 
+def test_unit_size_carries_over_from_chunk_to_chunk_bit_identical(tmp_path):
+    spec = load_spec("u", text=ballsurvey.api.spec_to_toml(SPEC))
+    whole = compute_launches(spec, 0, spec.n_launches, parallel=False)
+    pace, seen = {}, []
+    # unit_s so large that each unit asks for 4x the last: 4, then 16 (cut to 6 by the end)
+    a = compute_chunk(spec.text, spec.source, 0, 10, False, on_unit=seen.append, unit_s=1e3,
+                      spec=spec, pace=pace)
+    assert seen == [4, 6] and pace == {"size": 16}
+    # the next chunk starts at the size reached (one unit of 8), not again at 4
+    b = compute_chunk(spec.text, spec.source, 10, 18, False, on_unit=seen.append, unit_s=1e3,
+                      spec=spec, pace=pace)
+    assert seen[2:] == [8]
+    fresh = []
+    compute_chunk(spec.text, spec.source, 10, 18, False, on_unit=fresh.append, unit_s=1e3)
+    assert fresh == [4, 4]
+    for k in spec.variables:
+        assert np.array_equal(whole[k], np.concatenate([a[k], b[k]]), equal_nan=True), k
+
+
 def test_ctrl_c_keeps_finished_units_of_a_one_chunk_map_and_resume_is_identical(tmp_path,
                                                                                   big_spec_text):
     (tmp_path / "big.toml").write_text(big_spec_text)

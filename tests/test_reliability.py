@@ -542,9 +542,10 @@ def test_no_workers_left_ends_with_one_line_and_keeps_parts(tmp_path, reference)
 
 def test_ctrl_c_while_a_part_is_written_counts_only_what_is_on_disk(tmp_path, reference,
                                                                      monkeypatch):
-    """Ctrl-C arriving as chunk 1's part is being written: the write is finished first, so the
-    run says it kept 4 launches and both parts are on disk (it said 4 with one part there),
-    and --resume gives the uninterrupted map."""
+    """Ctrl-C arriving as chunk 1's part is being written (in the background, while chunk 2
+    runs): the write is finished first, so both parts are on disk, and the launches the run says
+    it kept are those on disk (4, or 6 where chunk 2 had finished and was saved too); --resume
+    gives the uninterrupted map."""
     import signal
 
     spec = tiny_spec(tmp_path, "w.nc")
@@ -560,8 +561,88 @@ def test_ctrl_c_while_a_part_is_written_counts_only_what_is_on_disk(tmp_path, re
         run_sweep(spec, command="test")
     parts = parts_dir(spec.output)
     on_disk = sorted(p.name for p in parts.glob("chunk-*.npz"))
-    assert on_disk == ["chunk-000000.npz", "chunk-000001.npz"], on_disk
-    assert exc.value.kept == 4 and not list(parts.glob("partial-*"))
+    assert on_disk[:2] == ["chunk-000000.npz", "chunk-000001.npz"], on_disk
+    assert exc.value.kept == 2 * len(on_disk) and not list(parts.glob("partial-*"))
+    monkeypatch.setattr(engine, "_write_part", write)
+    same_map(run_sweep(spec, resume=True, command="test"), reference)
+
+
+def _slow_writes(monkeypatch, log, delay=0.5, fail_at=None):
+    """engine._write_part taking `delay` s (a slow disk), logging ('start', k, in the main
+    thread?) and ('end', k); chunk `fail_at` fails as on a full disk."""
+    import threading
+
+    write = engine._write_part
+
+    def write_part(parts, k, *args):
+        log.append(("start", k, threading.current_thread() is threading.main_thread()))
+        time.sleep(delay)
+        if k == fail_at:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        write(parts, k, *args)
+        log.append(("end", k))
+    monkeypatch.setattr(engine, "_write_part", write_part)
+    return write
+
+
+def test_parts_are_saved_in_the_background_in_order(tmp_path, reference, monkeypatch):
+    """In this process a part is saved by a background thread while the next chunk runs: one
+    at a time, in chunk order, and on_chunk(k) only once part k is on disk."""
+    spec = tiny_spec(tmp_path, "bg.nc")
+    log, seen, at_unit = [], [], {}
+    _slow_writes(monkeypatch, log)
+
+    def on_chunk(k):
+        assert (parts_dir(spec.output) / f"chunk-{k:06d}.npz").is_file()
+        seen.append(k)
+    run_sweep(spec, command="test", on_chunk=on_chunk,
+              on_unit=lambda done, total: at_unit.setdefault(done, list(log)))
+    assert seen == [0, 1, 2]
+    assert log == [("start", 0, False), ("end", 0), ("start", 1, False), ("end", 1),
+                   ("start", 2, False), ("end", 2)]
+    # chunk 1 was computed while chunk 0's part was being written
+    assert at_unit[4] == [("start", 0, False)], at_unit
+    same_map(spec.output, reference)
+
+
+def test_ctrl_c_while_a_part_is_saved_behind_keeps_it_and_the_chunk_after(tmp_path, reference,
+                                                                         monkeypatch):
+    """Ctrl-C as chunk 2 finishes while chunk 1's part is still being written: the run waits
+    for it, saves chunk 2 after it, and counts the 6 launches on disk; --resume only
+    assembles."""
+    spec = tiny_spec(tmp_path, "bgc.nc")
+    log = []
+    write = _slow_writes(monkeypatch, log)
+
+    def on_unit(done, total):
+        if done == 6:
+            raise KeyboardInterrupt
+    with pytest.raises(engine.SweepInterrupted) as exc:
+        run_sweep(spec, command="test", on_unit=on_unit)
+    assert [e[1] for e in log if e[0] == "start"] == [0, 1, 2]
+    parts = parts_dir(spec.output)
+    assert len(list(parts.glob("chunk-*.npz"))) == 3 and exc.value.kept == 6
+    monkeypatch.setattr(engine, "_write_part", write)
+    redone = []
+    same_map(run_sweep(spec, resume=True, command="test", on_chunk=redone.append), reference)
+    assert redone == []
+
+
+def test_a_part_failing_in_the_background_stops_the_run_and_it_resumes(tmp_path, reference,
+                                                                       monkeypatch):
+    """Chunk 0's part cannot be written (a full disk) while chunk 1 runs: the run stops with
+    one RunError naming the part and what is kept, chunk 1 is not saved after it, chunk 2 is
+    not computed, and --resume gives the uninterrupted map."""
+    spec = tiny_spec(tmp_path, "bgf.nc")
+    log, units = [], []
+    write = _slow_writes(monkeypatch, log, delay=0.2, fail_at=0)
+    with pytest.raises(RunError, match=r"chunk-000000\.npz: No space left on device; 0 of 6 "
+                                       r"launches are kept .*--resume") as exc:
+        run_sweep(spec, command="test", on_unit=lambda done, total: units.append(done))
+    assert "\n" not in str(exc.value)
+    assert log == [("start", 0, False)] and max(units) <= 4
+    parts = parts_dir(spec.output)
+    assert not list(parts.glob("chunk-*.npz")) and not list(parts.glob(".*tmp*"))
     monkeypatch.setattr(engine, "_write_part", write)
     same_map(run_sweep(spec, resume=True, command="test"), reference)
 

@@ -73,22 +73,30 @@ def concat(pieces: list[dict], variables) -> dict:
 
 def compute_chunk(spec_text: str, spec_source: str, lo: int, hi: int, parallel: bool = True, *,
                   done: dict | None = None, on_unit=None, unit: int | None = None,
-                  unit_s: float = UNIT_S) -> dict:
+                  unit_s: float = UNIT_S, spec: Spec | None = None,
+                  pace: dict | None = None) -> dict:
     """Integrate and label launches lo..hi-1 of a spec as units run in sequence; {variable: array}.
 
     done: results of the chunk's first launches (from an interrupted run), not computed again.
     on_unit(n): called after each unit with its number of launches. unit: a fixed unit size
     (default: adaptive, about unit_s seconds each). Ctrl-C raises ChunkInterrupted with the
     launches finished so far. On the GPU (backend cuda) the chunk is one unit: a kernel launch
-    needs many launches to fill the card, and lasts as long as its slowest launch."""
-    spec = load_spec(spec_source, text=spec_text)
+    needs many launches to fill the card, and lasts as long as its slowest launch.
+    spec: the spec `spec_text` parses to, when the caller has it (not parsed again per chunk).
+    pace: a dict shared by the chunks of one run: the adaptive unit size carries over from one
+    chunk to the next (key 'size') instead of starting small in each (a map of many small
+    chunks would otherwise spend its time on units of a few launches). The units never change
+    a launch's result."""
+    if spec is None:
+        spec = load_spec(spec_source, text=spec_text)
+    pace = {} if pace is None else pace
     pieces = [done] if done else []
     a = lo + (n_launches(done) if done else 0)
     threads = _threads(parallel)
     smallest = min(hi - lo, 4 * threads)
     if spec.backend == "cuda":
         unit = hi - lo
-    size = unit or smallest
+    size = unit or max(smallest, pace.get("size", 0))
     try:
         while a < hi:
             b = min(hi, a + size)
@@ -99,8 +107,10 @@ def compute_chunk(spec_text: str, spec_source: str, lo: int, hi: int, parallel: 
             if on_unit is not None:
                 on_unit(b - a)
             if unit is None:  # aim at unit_s per unit; grow at most 4x at a time
-                rate = (b - a) / max(took, 1e-6)
-                size = int(min(4 * (b - a), max(smallest, rate * unit_s)))
+                target = max(smallest, (b - a) / max(took, 1e-6) * unit_s)
+                # a unit cut short by the chunk's end may shrink the size, not grow it
+                size = int(min(4 * (b - a) if b - a == size else size, target))
+                pace["size"] = size
             a = b
     except KeyboardInterrupt:
         # what is saved is what was computed: a Ctrl-C between a unit's end and `a = b` must not

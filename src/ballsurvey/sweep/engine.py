@@ -10,6 +10,8 @@ each concern has its own module:
 * `executors`: in this process, or on a dask.distributed cluster (and starting one);
 * `provenance`: the global attributes; `ballsurvey.store.write_netcdf`: the file itself.
 
+In this process, a chunk's part is saved by a background thread while the next chunk is
+computed (one part in flight, so parts are saved in chunk order; Ctrl-C and errors wait for it).
 When all chunks are done, the file is assembled from the parts one chunk at a time (memory
 bounded by the chunk size) in a private temporary folder, read back and checked, and renamed into
 place; only then are the parts removed.
@@ -190,6 +192,58 @@ class _DeferSigint:
                 raise KeyboardInterrupt
 
 
+class _PartWriter:
+    """Saves chunks' parts in a background thread while the next chunk is computed (the kernels
+    release the GIL, and a part's checksum, file and fsync then cost no wall time): one part in
+    flight at a time, so parts are written in the order the chunks finish.
+
+    save(k, result) writes part k (raising RunError when it cannot); `settle` waits for the part
+    in flight and raises what its save raised; `close` waits for it and drops its failure (for
+    a run that is already ending on another exception) and returns the failed chunk, if any."""
+
+    def __init__(self, save):
+        from concurrent.futures import ThreadPoolExecutor
+
+        self.save = save
+        self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="ballsurvey-part")
+        self.pending = None  # (k, future)
+
+    def submit(self, k: int, result: dict) -> None:
+        self.pending = (k, self.pool.submit(self.save, k, result))
+
+    def failed(self) -> bool:
+        """The part in flight is done and its save raised."""
+        return (self.pending is not None and self.pending[1].done()
+                and self.pending[1].exception() is not None)
+
+    def settle(self):
+        """Wait for the part in flight (a Ctrl-C meanwhile is held until it is on disk, then
+        raised); returns its chunk, or None when none was in flight."""
+        if self.pending is None:
+            return None
+        k, future = self.pending
+        try:
+            with _DeferSigint():
+                future.exception()  # waits
+        except KeyboardInterrupt:
+            if future.done() and future.exception() is None:
+                self.pending = None  # on disk; a failed one stays for `close` to report
+            raise
+        self.pending = None
+        future.result()  # its failure, if any
+        return k
+
+    def close(self):
+        failed = None
+        if self.pending is not None:
+            k, future = self.pending
+            self.pending = None
+            if future.exception() is not None:
+                failed = k
+        self.pool.shutdown(wait=True)
+        return failed
+
+
 def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=None,
               progress: bool | None = None, command: str = "", on_chunk=None, notice=None,
               dask_wait_s: float = DASK_WAIT_S, on_unit=None, report: dict | None = None) -> Path:
@@ -204,8 +258,11 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
 
     One writer per output: the run holds `<output>.lock` for its whole life; a second run on the
     same output is refused (OutputBusy). On resume the recorded chunk plan is used and parts are
-    verified (those that fail are computed again). Parts are removed only once the final file is
-    in place and verified. Ctrl-C saves every finished unit of work and raises SweepInterrupted."""
+    verified (those that fail are computed again). In this process each part is saved in the
+    background while the next chunk runs, in chunk order; on_chunk(k) is called from this
+    thread once part k is on disk (after the next chunk is computed). Parts are removed only
+    once the final file is in place and verified. Ctrl-C saves every finished unit of work and
+    raises SweepInterrupted."""
     from tqdm import tqdm
 
     t_start = time.perf_counter()
@@ -250,7 +307,7 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
 
         saved = set(done)  # chunks whose part is on disk
 
-        def finished(k, result):
+        def save(k, result):
             lo, hi, _ = chunks[k]
             with _DeferSigint():
                 try:
@@ -263,15 +320,56 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
                                    "once it can be written") from None
                 remove_partial(parts, k)
                 saved.add(k)
+
+        def finished(k, result):
+            save(k, result)
             if on_chunk is not None:
                 on_chunk(k)
+
+        # in this process: each part is saved in the background while the next chunk runs
+        writer = _PartWriter(save) if client is None else None
+
+        def computed_here(k):
+            """Launches of chunk k computed by this run (not taken from a partial part)."""
+            lo, hi, _ = chunks[k]
+            return hi - lo - (n_launches(partials[k]) if k in partials else 0)
+
+        def settle():
+            """Wait for the part in flight, then tell on_chunk it is saved."""
+            j = writer.settle()
+            if j is not None and on_chunk is not None:
+                on_chunk(j)
+
+        def finished_behind(k, result):
+            """Chunk k is computed: once the part before it is on disk, save k in the
+            background. A Ctrl-C while waiting saves k too (a ChunkInterrupted of the whole
+            chunk); an interruption raised by on_chunk drops k, as if it came before k ran."""
+            try:
+                j = writer.settle()
+            except KeyboardInterrupt:
+                whole = ChunkInterrupted(result, n_launches(result))
+                whole.chunk = k
+                raise whole from None
+            if j is not None and on_chunk is not None:
+                try:
+                    on_chunk(j)
+                except KeyboardInterrupt:
+                    state["done"] -= computed_here(k)
+                    raise
+            writer.submit(k, result)
+
+        def advance_and_check(n):
+            advance(n)
+            if writer.failed():  # a part could not be saved: stop now, not after this chunk
+                writer.settle()
 
         compile_s = 0.0
         try:
             with compile_watch(say) as compiling:
                 if client is None:
-                    run_embedded(spec, chunks, todo, finished, partials=partials,
-                                 on_unit=advance)
+                    run_embedded(spec, chunks, todo, finished_behind, partials=partials,
+                                 on_unit=advance_and_check)
+                    settle()
                 else:
                     run_dask(client, spec, chunks, todo, finished, dask_wait_s,
                              partials=partials, on_task=advance, report=report)
@@ -279,6 +377,10 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
         except (KeyboardInterrupt, RunError) as exc:
             bar.close()
             with _NoSigint():
+                if writer is not None:  # the part in flight first: parts stay in order
+                    lost = writer.close()
+                    if lost is not None:  # not saved: not counted as kept
+                        state["done"] -= computed_here(lost)
                 if isinstance(exc, ChunkInterrupted) and exc.done > 0:
                     k = exc.chunk
                     lo, hi, _ = chunks[k]
@@ -313,6 +415,9 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
             raise SweepInterrupted(parts, kept, spec.n_launches) from None
         finally:
             bar.close()
+            if writer is not None:
+                with _NoSigint():
+                    writer.close()
 
         def get_part(k):
             lo, hi, _ = chunks[k]

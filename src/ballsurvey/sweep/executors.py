@@ -56,11 +56,12 @@ def run_embedded(spec: Spec, chunks: list, todo: list, finished, *, partials=Non
     partials: {k: results of chunk k's first launches} kept from an interrupted run.
     Ctrl-C raises compute.ChunkInterrupted (with its `chunk`) holding the finished launches."""
     partials = partials or {}
+    pace = {}  # the unit size, carried from chunk to chunk
     for k in todo:
         lo, hi, _ = chunks[k]
         try:
             result = compute_chunk(spec.text, spec.source, lo, hi, parallel=True,
-                                   done=partials.get(k), on_unit=on_unit)
+                                   done=partials.get(k), on_unit=on_unit, spec=spec, pace=pace)
         except KeyboardInterrupt as exc:
             exc.chunk = k
             raise
