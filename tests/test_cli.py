@@ -22,6 +22,28 @@ def test_quick_sweep_then_up_to_date(tmp_path):
     assert r.returncode == 0 and "up to date" in r.stdout
 
 
+def test_a_sweep_from_the_command_line_imports_neither_xarray_nor_pandas(tmp_path):
+    """Their import is a quarter of a fresh process's start (the fixed cost of every sweep, and
+    of each run `bench --scaling` times); a sweep writes with netCDF4 and needs neither. Library
+    use still gets every public name and the `ds.ballsurvey` accessor at `import ballsurvey`."""
+    out = tmp_path / "quick.nc"
+    r = subprocess.run([sys.executable, "-X", "importtime", "-m", "ballsurvey", "sweep",
+                        "sweeps/quick.toml", "-o", str(out)], cwd=ROOT, capture_output=True,
+                       text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert "shapes: circle 45, triangle 22, square 14, ngon 27" in r.stdout, r.stdout
+    imported = {line.rsplit("|", 1)[-1].strip() for line in r.stderr.splitlines()
+                if line.startswith("import time:")}
+    assert "numpy" in imported and "netCDF4" in imported, sorted(imported)[:20]
+    assert not {"xarray", "pandas"} & imported
+    lib = subprocess.run([sys.executable, "-c", (
+        "import ballsurvey, xarray as xr; "
+        "assert callable(ballsurvey.sweep) and callable(ballsurvey.query); "
+        f"print(int(sum(xr.open_dataset({str(out)!r}).ballsurvey.counts().values)))")],
+        cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert lib.returncode == 0 and lib.stdout.strip() == "108", lib.stderr
+
+
 def test_missing_spec_is_one_line_exit_2(tmp_path):
     r = run("sweep", str(tmp_path / "nope.toml"))
     assert r.returncode == 2

@@ -366,9 +366,9 @@ def test_workers_in_an_unguarded_script_say_what_to_do(monkeypatch):
 # Ctrl-C is one line from the first instant
 IMPORT_INTERRUPTED = textwrap.dedent("""
     import runpy, sys
-    class CtrlC:  # a Ctrl-C while the package imports its dependencies
+    class CtrlC:  # a Ctrl-C while the command line's modules and their dependencies import
         def find_spec(self, name, path=None, target=None):
-            if name == "xarray":
+            if name == "ballsurvey.cli":
                 raise KeyboardInterrupt
     sys.meta_path.insert(0, CtrlC())
     if sys.argv[1] == "script":

@@ -45,15 +45,34 @@ def _one_line_interrupt() -> None:
 
 _one_line_interrupt()
 
-# the subpackages first: importing them later would rebind the names `sweep` and `query`
-from . import query as _query_module  # noqa: E402,F401
-from . import sweep as _sweep_package  # noqa: E402,F401
-from .api import open_map, query, select, sweep  # noqa: E402
-from .ball import Ball  # noqa: E402
-from .classify.labels import LABELS, Thresholds  # noqa: E402
-from .limits import InputError  # noqa: E402
-from .simulate import simulate  # noqa: E402
-from .sweep.engine import SweepInterrupted  # noqa: E402
+#: the public names and the modules that define them
+_PUBLIC = {"open_map": "api", "query": "api", "select": "api", "sweep": "api", "Ball": "ball",
+           "LABELS": "classify.labels", "Thresholds": "classify.labels",
+           "InputError": "limits", "simulate": "simulate", "SweepInterrupted": "sweep.engine"}
+
+
+def _load_public() -> None:
+    """Every public name bound here. The subpackages `sweep` and `query` are imported first:
+    importing them later would rebind the names `sweep` and `query` to the modules."""
+    import importlib
+
+    importlib.import_module(".query", __name__)
+    importlib.import_module(".sweep", __name__)
+    for name, module in _PUBLIC.items():
+        globals()[name] = getattr(importlib.import_module(f".{module}", __name__), name)
+
+
+def __getattr__(name):
+    """The command line binds the public names on first use (PEP 562): a sweep or a path needs
+    neither xarray nor pandas, a third of a fresh process's start."""
+    if name in _PUBLIC:
+        _load_public()
+        return globals()[name]
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+if not _COMMAND_LINE:  # library use: everything at once, the `ds.ballsurvey` accessor included
+    _load_public()
 
 __all__ = ["Ball", "simulate", "sweep", "open_map", "query", "select", "Thresholds", "LABELS",
            "InputError", "SweepInterrupted", "__version__"]

@@ -7,8 +7,9 @@ Files follow CF-1.10 (checked in the tests with the IOOS compliance-checker).
 from __future__ import annotations
 
 import math
+import sys
 import threading
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 
 import numpy as np
 
@@ -81,7 +82,9 @@ def netcdf_lock(direct: bool = False):
     direct: the block calls netCDF4 itself (not through xarray); xarray's own HDF5 and netCDF-C
     locks are then held too, so the block is also serialised with reads of a map that xarray
     opened lazily, which take only those. Through xarray (direct=False) they are not taken here:
-    xarray takes them itself, and they do not nest."""
+    xarray takes them itself, and they do not nest. Where xarray is not imported (the command
+    line's sweep: the package imports it for library use), nothing can read through it, and
+    importing it only for its locks would cost a quarter of a fresh process's start."""
     with NETCDF_LOCK:
         depth = getattr(_held, "depth", 0)
         if not direct or depth:
@@ -91,9 +94,9 @@ def netcdf_lock(direct: bool = False):
             finally:
                 _held.depth = depth
             return
-        from xarray.backends.locks import HDF5_LOCK, NETCDFC_LOCK
-
-        with NETCDFC_LOCK, HDF5_LOCK:
+        locks = sys.modules.get("xarray.backends.locks")
+        with (locks.NETCDFC_LOCK if locks else nullcontext()), \
+                (locks.HDF5_LOCK if locks else nullcontext()):
             _held.depth = 1
             try:
                 yield
