@@ -120,6 +120,12 @@ FIELD_DIMENSIONS = {
 }
 
 
+def line_turn_deg(th: Thresholds) -> float:
+    """The turn per cycle (deg) below which a path is near_straight: the circle through its
+    corners has a radius `near_straight_ratio` times a side, side / (2 sin(D / 2))."""
+    return math.degrees(2.0 * math.asin(0.5 / th.near_straight_ratio))
+
+
 def label_fields(obs: np.ndarray, flat_face_theta, th: Thresholds = Thresholds(), *,
                  chart_free=None, failure=None) -> dict:
     """Turn observer slots (N_OBS, n) into labels and fields, non-dimensional: the names are the
@@ -227,9 +233,16 @@ def label_fields(obs: np.ndarray, flat_face_theta, th: Thresholds = Thresholds()
     # cycle is a petal that comes back near its start, and the petals, rotated cycle by cycle,
     # draw a rosette
     # (a line turns only at its cusps, where the speed vanishes: under a quarter turn elsewhere)
+    # ... and unless the petals turn so little a cycle that the eye sees one line turning
+    # slowly: a retraced cycle's heading turns by 180 deg less the line's own turn per cycle, so
+    # the line is near_straight below the turn per cycle of a near_straight path, as any path.
+    # Whether the heading's turn at a hairpin counts (over a quarter turn) depends on how finely
+    # the observer resolves the hairpin; the turn between maxima does not
     with np.errstate(invalid="ignore"):
         petal_cycle = o[ob.O_C_TURN] > 0.5 * math.pi
-    label[retraced] = np.where(petal_cycle, CODE["rosette"], CODE["near_straight"])[retraced]
+        slow_line = 180.0 - abs_turn < line_turn_deg(th)
+    label[retraced] = np.where(petal_cycle & ~slow_line, CODE["rosette"],
+                               CODE["near_straight"])[retraced]
     label[~has] = CODE["unresolved"]
     label[n_cyc < th.min_cycles] = CODE["unresolved"]
     with np.errstate(invalid="ignore"):
