@@ -358,10 +358,17 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
                                                    phd, u, w, psid, c, A, B)
             on_minimum(obs, i, th_ev, xm, ym)
         # --- theta maximum: thetadot turns from + to - ----------------------------------------
+        # (one between the launch and the first sample after it is not a cycle's start: the
+        # launch's own sample can sit within 1e-7 deg of the vertical, where its Euler rates,
+        # and so the path's heading read there, are rounding; the first cycle starts at the next)
         if obs[O_P_THD, i] > 0.0 and thd <= 0.0:
             _, t_ev, th_ev, chi_ev, x_ev, y_ev, psi_ev, speed_ev = _locate(
                 obs, i, t, x, y, sth, cth, chi, thd, chd, phd, u, w, psid, c, A, B)
-            on_maximum(obs, i, t_ev, th_ev, chi_ev, x_ev, y_ev, psi_ev, speed_ev, psid, speed)
+            if obs[O_NMAX, i] > 0.0 or obs[O_A_NSAMP, i] > 1.0:
+                on_maximum(obs, i, t_ev, th_ev, chi_ev, x_ev, y_ev, psi_ev, speed_ev, psid,
+                           speed)
+            else:
+                obs[O_TH_MAX, i] = max(obs[O_TH_MAX, i], th_ev)
     obs[O_P_THD, i] = thd
     obs[O_P_T, i] = t
     obs[O_P_CHI, i] = chi
