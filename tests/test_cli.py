@@ -44,6 +44,40 @@ def test_a_sweep_from_the_command_line_imports_neither_xarray_nor_pandas(tmp_pat
     assert lib.returncode == 0 and lib.stdout.strip() == "108", lib.stderr
 
 
+def test_another_program_run_with_m_that_imports_ballsurvey_is_library_use(tmp_path):
+    # `python -m mytool`, whose package imports ballsurvey: sys.argv[0] is "-m" then too, yet
+    # this is library use: `ballsurvey.sweep` is the function even after a submodule of the
+    # subpackage is imported, and the `ds.ballsurvey` accessor is there
+    pkg = tmp_path / "mytool"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("import ballsurvey\n")
+    (pkg / "__main__.py").write_text(
+        "import xarray as xr\n"
+        "import ballsurvey\n"
+        "import ballsurvey.sweep.spec\n"
+        "print(callable(ballsurvey.sweep), hasattr(xr.Dataset(), 'ballsurvey'))\n")
+    r = subprocess.run([sys.executable, "-m", "mytool"], cwd=tmp_path, capture_output=True,
+                       text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == ["True", "True"]
+
+
+@pytest.mark.parametrize("orig_argv, command_line", [
+    (["python", "-m", "ballsurvey", "sweep", "s.toml"], True),
+    (["python", "-X", "importtime", "-m", "ballsurvey"], True),
+    (["python", "-Xfrozen_modules=off", "-Im", "ballsurvey"], True),
+    (["python", "-mballsurvey", "plot"], True),
+    (["python", "-W", "ignore", "-m", "mytool", "-m", "ballsurvey"], False),
+    (["python", "-m", "ballsurveyx"], False),
+    (["python", "-c", "import ballsurvey", "-m", "ballsurvey"], False)])
+def test_which_module_python_m_runs(orig_argv, command_line):
+    from ballsurvey import _is_command_line
+
+    assert _is_command_line("-m", orig_argv) is command_line
+    assert _is_command_line("/venv/bin/ballsurvey", ["python", "/venv/bin/ballsurvey"])
+    assert not _is_command_line("script.py", ["python", "script.py"])
+
+
 def test_missing_spec_is_one_line_exit_2(tmp_path):
     r = run("sweep", str(tmp_path / "nope.toml"))
     assert r.returncode == 2

@@ -375,7 +375,8 @@ IMPORT_INTERRUPTED = textwrap.dedent("""
         sys.argv = ["/usr/bin/ballsurvey", "--version"]
         from ballsurvey.cli import main
     else:
-        sys.argv = ["-m", "--version"]
+        sys.argv = ["-m", "--version"]  # as `python -m ballsurvey --version` sets them
+        sys.orig_argv = [sys.executable, "-m", "ballsurvey", "--version"]
         runpy._run_module_as_main("ballsurvey")
 """)
 

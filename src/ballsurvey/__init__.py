@@ -16,6 +16,36 @@ __version__ = "0.1.0"
 _COMMAND_LINE = False
 
 
+def _is_command_line(argv0: str, orig_argv: list) -> bool:
+    """Whether this process is the command line: the `ballsurvey` script, or `python -m
+    ballsurvey` (sys.argv[0] is "-m" while the package of any module run with -m imports, so the
+    module's name is read from the interpreter's own arguments: `python -m mytool`, whose
+    package imports ballsurvey, is library use)."""
+    import os
+
+    name = os.path.basename(argv0)
+    if name != "-m":
+        return name == "ballsurvey"
+    args = iter(orig_argv[1:])
+    for arg in args:  # the interpreter's options, up to -m MODULE
+        if arg == "--check-hash-based-pycs":
+            next(args, None)
+            continue
+        if not arg.startswith("-") or arg.startswith("--"):
+            return False
+        for k, flag in enumerate(arg[1:], 2):  # a cluster of one-letter flags, such as -Im
+            if flag in "WX":  # their value: the rest of this argument, or the next one
+                if k == len(arg):
+                    next(args, None)
+                break
+            if flag == "c":
+                return False
+            if flag == "m":
+                module = arg[k:] or next(args, "")
+                return module in ("ballsurvey", "ballsurvey.__main__")
+    return False
+
+
 def _one_line_interrupt() -> None:
     """The command line (`ballsurvey ...`, `python -m ballsurvey ...`): a Ctrl-C that escapes
     everything, such as one while this package is still importing, ends with one line and exit
@@ -24,7 +54,7 @@ def _one_line_interrupt() -> None:
     import sys
 
     global _COMMAND_LINE
-    if os.path.basename(sys.argv[0] if sys.argv else "") not in ("ballsurvey", "-m"):
+    if not _is_command_line(sys.argv[0] if sys.argv else "", getattr(sys, "orig_argv", [])):
         return
     _COMMAND_LINE = True
     previous = sys.excepthook
