@@ -209,8 +209,10 @@ def test_a_rocking_line_that_turns_slowly_is_near_straight_on_both_observers():
     turns = []
     for launch in launches:
         turn, retrace = _line_turn_per_cycle_deg(*launch)
-        # a line turning slowly is retraced (back within 3 % of the distance rolled of its
-        # start each cycle: the rule in question decides it); one turning faster drifts more
+        # the slowly turning lines here are retraced (back within 3 % of the distance rolled
+        # of their start each cycle), so the rule in question decides them; the faster ones
+        # here drift further and are named by the other rules (wider petals, with a hole in
+        # the middle, are a rosette however slowly they turn)
         assert (retrace < 0.03) == (turn < limit), (launch, turn, retrace)
         turns.append(turn)
     assert min(abs(t - limit) for t in turns) > 1.0, turns  # none on the fence
