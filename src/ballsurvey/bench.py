@@ -376,10 +376,12 @@ def run_scaling(path=None, threads: int | None = None, workers: int | None = Non
     out(f"  {'run':38s}{'wall (s)':>9s}{'CPU':>6s}{'kernels (s)':>12s}{'rest (s)':>9s}"
         f"{'speed-up: wall':>16s}{'kernels':>9s}")
     for name, row in rows.items():
+        # kernel times print to 0.01 s: a ratio of two under that is rounding, not a speed-up
+        k_ratio = (f"{one['kernels_s'] / row['kernels_s']:8.1f}x"
+                   if min(one["kernels_s"], row["kernels_s"]) >= 0.01 else f"{'-':>9s}")
         out(f"  {name:38s}{row['wall_s']:9.2f}{100 * row['cpu_s'] / row['wall_s']:5.0f}%"
             f"{row['kernels_s']:12.2f}{row['rest_s']:9.2f}"
-            f"{one['wall_s'] / row['wall_s']:15.1f}x"
-            f"{one['kernels_s'] / max(row['kernels_s'], 1e-9):8.1f}x")
+            f"{one['wall_s'] / row['wall_s']:15.1f}x{k_ratio}")
     out("  kernels: integrate + fixed-frame fallback + label, as `sweep -v` prints them (on dask:"
         " each worker's on average); rest: wall minus kernels (numba's start included)")
     if has_dask:
