@@ -80,20 +80,20 @@ def test_lost_scheduler_mid_run_is_one_line_and_keeps_parts(tmp_path):
     parts = parts_dir(spec.output)
     with external_cluster("--nworkers", "1") as (client, sched, worker):
 
-        def kill_when_a_part_is_saved():
-            t1 = time.time()
-            while not list(parts.glob("chunk-*.npz")) and time.time() - t1 < 120:
-                time.sleep(0.05)
-            sched.kill()
+        def kill_once_a_part_is_saved(k):
+            # from the run itself, right after its first part is on disk: the other chunks'
+            # results are still on the worker (a thread watching the folder let a fast
+            # machine finish all 12 launches before the kill)
+            if sched.poll() is None:
+                sched.kill()
+                sched.wait(10)
 
-        killer = threading.Thread(target=kill_when_a_part_is_saved, daemon=True)
-        killer.start()
         t0 = time.time()
         with pytest.raises(RunError, match="dask") as err:
-            run_sweep(spec, client=client, dask_wait_s=3.0, command="test")
+            run_sweep(spec, client=client, dask_wait_s=3.0, command="test",
+                      on_chunk=kill_once_a_part_is_saved)
         assert "\n" not in str(err.value) and "--resume" in str(err.value)
         assert time.time() - t0 < 120
-        killer.join(5)
         kept = list(parts.glob("chunk-*.npz"))
         assert kept and not spec.output.exists()
     got = run_sweep(spec, resume=True, command="test")  # the kept chunks, then the rest
