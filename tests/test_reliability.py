@@ -605,6 +605,26 @@ def test_parts_are_saved_in_the_background_in_order(tmp_path, reference, monkeyp
     same_map(spec.output, reference)
 
 
+def test_chunks_are_labelled_in_the_part_writers_thread(tmp_path, reference, monkeypatch):
+    """The labelling (numpy, one core) of a chunk runs in the part writer's thread, while the
+    next chunk is integrated, and gives the same map bit for bit."""
+    import threading
+
+    from ballsurvey.sweep import compute
+
+    spec = tiny_spec(tmp_path, "lab.nc")
+    where = []
+    label = compute.survey_fields
+
+    def recorded(run):
+        where.append(threading.current_thread().name)
+        return label(run)
+    monkeypatch.setattr(compute, "survey_fields", recorded)
+    run_sweep(spec, command="test")
+    assert where and all(name.startswith("ballsurvey-part") for name in where), where
+    same_map(spec.output, reference)
+
+
 def test_ctrl_c_while_a_part_is_saved_behind_keeps_it_and_the_chunk_after(tmp_path, reference,
                                                                          monkeypatch):
     """Ctrl-C as chunk 2 finishes while chunk 1's part is still being written: the run waits

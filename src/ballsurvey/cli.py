@@ -302,7 +302,7 @@ def _where_the_time_went(report: dict, on_dask: bool) -> str:
     the run, and on dask the cluster's start (or the connection to a running scheduler), the
     workers' first call and the client's (and a local cluster's) closing. `bench --scaling`
     reads it."""
-    from .compose import TIMES
+    from .compose import TIMES, in_line, phases_text
 
     def phases(times, per=1):
         return ", ".join(f"{k} {v / per:.2f} s" for k, v in times.items())
@@ -318,13 +318,13 @@ def _where_the_time_went(report: dict, on_dask: bool) -> str:
                 f"(imports, kernels loaded), the run on the cluster {wall:.2f} s, closing "
                 f"{report.get('cluster_close_s', float('nan')):.2f} s{kernels}")
     comp = report.get("compile_s", 0.0)
-    rest = wall - sum(TIMES.values())
+    rest = wall - in_line(TIMES)
     # kernels compile at their first call, inside the phase that calls them
     comp = f"; {comp:.2f} s of it compiling kernels at first call" if comp >= 0.05 else ""
     start = (f"numba start {report['numba_start_s']:.2f} s (before the run), "
              if "numba_start_s" in report else "")
-    return (f"  where the time went: {start}{phases(TIMES)}, the rest (plan, parts, writing) "
-            f"{rest:.2f} s{comp}")
+    return (f"  where the time went: {start}{phases_text(TIMES)}, the rest (plan, parts, "
+            f"writing) {rest:.2f} s{comp}")
 
 
 def _start_numba() -> float:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 import time
 from collections import Counter
+from typing import NamedTuple
 
 import numpy as np
 
@@ -32,6 +33,20 @@ from .units import StepPlan, fields_to_si, launch_state
 #: seconds spent in this process, by part (integrate, fixed-frame fallback, label): `sweep -v`
 #: prints them; a dask worker keeps its own
 TIMES: Counter = Counter()
+#: the phase a sweep in this process runs beside the integration (in its part writer's thread)
+BESIDE = "label"
+
+
+def phases_text(times: dict, digits: int = 2) -> str:
+    """'integrate 4.70 s, ..., label 0.20 s (beside the integration)': `TIMES` as a run in this
+    process spent them."""
+    return ", ".join(f"{k} {v:.{digits}f} s" + (" (beside the integration)" if k == BESIDE
+                                                else "") for k, v in times.items())
+
+
+def in_line(times: dict) -> float:
+    """Seconds of `times` on a sweep's own path in this process: all but `BESIDE`."""
+    return sum(v for k, v in times.items() if k != BESIDE)
 
 #: the classifier's streaming observer, as the integrators take it
 OBSERVER = Observer(record=observe, done=cycles_done)
@@ -216,20 +231,46 @@ def launch_arrays(table: dict):
     return y0, params, tu, flat
 
 
+class SurveyRun(NamedTuple):
+    """Launches integrated and observed, not yet labelled (`survey_fields` labels them)."""
+
+    res: oc.Result
+    flat: np.ndarray
+    a: np.ndarray
+    tu: float
+    M: np.ndarray
+    thresholds: Thresholds
+
+
+def survey_run(table: dict, *, T: float, dt: float, method: str = "rk4", rtol=1e-9,
+               atol=1e-12, block=64, observe_every=4, cycles=0,
+               thresholds: Thresholds = Thresholds(), parallel=True,
+               backend: str = "cpu") -> SurveyRun:
+    """The integration half of `survey` (the kernels: they release the GIL)."""
+    y0, params, tu, flat = launch_arrays(table)
+    res = run_launches(y0, params, StepPlan(T, dt, tu), method, rtol=rtol, atol=atol,
+                       block=block, observe_every=observe_every, parallel=parallel,
+                       cycles=cycles, thresholds=thresholds, backend=backend)
+    return SurveyRun(res, flat, table["a"], tu, table["M"], thresholds)
+
+
+def survey_fields(run: SurveyRun) -> dict:
+    """The labelling half of `survey` (numpy, on one core): SI fields of a `survey_run`."""
+    t0 = time.perf_counter()
+    out = fields_to_si(classify(run.res, run.flat, run.thresholds), run.a, run.tu, run.M)
+    TIMES["label"] += time.perf_counter() - t0
+    return out
+
+
 def survey(table: dict, *, T: float, dt: float, method: str = "rk4", rtol=1e-9, atol=1e-12,
            block=64, observe_every=4, cycles=0, thresholds: Thresholds = Thresholds(),
            parallel=True, backend: str = "cpu") -> dict:
     """SI launches -> SI fields. table: 1-D arrays theta0_deg, thetadot0, chidot0, phidot0,
     chi0_deg and the ball's a, c, M, A, B, g, cut_height per launch (g and a common)."""
-    a, M = table["a"], table["M"]
-    y0, params, tu, flat = launch_arrays(table)
-    res = run_launches(y0, params, StepPlan(T, dt, tu), method, rtol=rtol, atol=atol,
-                       block=block, observe_every=observe_every, parallel=parallel,
-                       cycles=cycles, thresholds=thresholds, backend=backend)
-    t0 = time.perf_counter()
-    out = fields_to_si(classify(res, flat, thresholds), a, tu, M)
-    TIMES["label"] += time.perf_counter() - t0
-    return out
+    return survey_fields(survey_run(table, T=T, dt=dt, method=method, rtol=rtol, atol=atol,
+                                    block=block, observe_every=observe_every, cycles=cycles,
+                                    thresholds=thresholds, parallel=parallel,
+                                    backend=backend))
 
 
 def warm_up() -> None:

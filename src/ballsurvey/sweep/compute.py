@@ -18,7 +18,7 @@ from contextlib import contextmanager, nullcontext
 
 import numpy as np
 
-from ..compose import survey
+from ..compose import survey_fields, survey_run
 from .plan import launch_table
 from .spec import Spec, load_spec
 
@@ -40,16 +40,40 @@ class ChunkInterrupted(KeyboardInterrupt):
         self.done = done
 
 
+class Unlabelled:
+    """A chunk's launches integrated, labelled when `fields_of` asks (the embedded run's part
+    writer does, in its thread, while the next chunk is integrated: the labelling is numpy on
+    one core, and the kernels release the GIL). pieces: results ({variable: array}) and
+    `compose.SurveyRun`s, in launch order."""
+
+    def __init__(self, pieces: list, variables, n: int):
+        self.pieces, self.variables, self.n = pieces, tuple(variables), n
+
+    def fields(self) -> dict:
+        return concat([p if isinstance(p, dict) else _select(survey_fields(p), self.variables)
+                       for p in self.pieces], self.variables)
+
+
+def fields_of(result) -> dict:
+    """{variable: array} of a result, labelling an `Unlabelled` one."""
+    return result.fields() if isinstance(result, Unlabelled) else result
+
+
+def _select(f: dict, variables) -> dict:
+    return {k: np.asarray(f[k]) for k in variables}
+
+
 def compute_launches(spec: Spec, lo: int, hi: int, parallel: bool = True,
-                     block: int | None = None) -> dict:
-    """Integrate and label launches lo..hi-1 of a spec in one kernel call; {variable: 1-D array}."""
+                     block: int | None = None, *, label: bool = True):
+    """Integrate and label launches lo..hi-1 of a spec in one kernel call; {variable: 1-D array}
+    (label False: the `compose.SurveyRun`, for `Unlabelled`)."""
     with PARALLEL_LOCK if parallel else nullcontext():
-        f = survey(launch_table(spec, lo, hi), T=spec.T, dt=spec.dt, method=spec.method,
-                   rtol=spec.rtol, atol=spec.atol, block=block or spec.block,
-                   observe_every=spec.observe_every,
-                   cycles=spec.cycles if spec.mode == "period" else 0,
-                   thresholds=spec.thresholds, parallel=parallel, backend=spec.backend)
-    return {k: np.asarray(f[k]) for k in spec.variables}
+        run = survey_run(launch_table(spec, lo, hi), T=spec.T, dt=spec.dt, method=spec.method,
+                         rtol=spec.rtol, atol=spec.atol, block=block or spec.block,
+                         observe_every=spec.observe_every,
+                         cycles=spec.cycles if spec.mode == "period" else 0,
+                         thresholds=spec.thresholds, parallel=parallel, backend=spec.backend)
+    return _select(survey_fields(run), spec.variables) if label else run
 
 
 def _threads(parallel: bool) -> int:
@@ -60,8 +84,10 @@ def _threads(parallel: bool) -> int:
     return max(1, numba.get_num_threads())
 
 
-def n_launches(result: dict) -> int:
-    """How many launches a result ({variable: array}) holds."""
+def n_launches(result) -> int:
+    """How many launches a result ({variable: array}, or `Unlabelled`) holds."""
+    if isinstance(result, Unlabelled):
+        return result.n
     return len(next(iter(result.values())))
 
 
@@ -74,7 +100,7 @@ def concat(pieces: list[dict], variables) -> dict:
 def compute_chunk(spec_text: str, spec_source: str, lo: int, hi: int, parallel: bool = True, *,
                   done: dict | None = None, on_unit=None, unit: int | None = None,
                   unit_s: float = UNIT_S, spec: Spec | None = None,
-                  pace: dict | None = None) -> dict:
+                  pace: dict | None = None, unlabelled: bool = False):
     """Integrate and label launches lo..hi-1 of a spec as units run in sequence; {variable: array}.
 
     done: results of the chunk's first launches (from an interrupted run), not computed again.
@@ -86,7 +112,8 @@ def compute_chunk(spec_text: str, spec_source: str, lo: int, hi: int, parallel: 
     pace: a dict shared by the chunks of one run: the adaptive unit size carries over from one
     chunk to the next (key 'size') instead of starting small in each (a map of many small
     chunks would otherwise spend its time on units of a few launches). The units never change
-    a launch's result."""
+    a launch's result. unlabelled: return an `Unlabelled` (labelled later by `fields_of`, the
+    same numbers); a Ctrl-C still raises ChunkInterrupted with labelled results."""
     if spec is None:
         spec = load_spec(spec_source, text=spec_text)
     pace = {} if pace is None else pace
@@ -102,7 +129,8 @@ def compute_chunk(spec_text: str, spec_source: str, lo: int, hi: int, parallel: 
             b = min(hi, a + size)
             t0 = time.perf_counter()
             block = min(spec.block, max(1, math.ceil((b - a) / threads)))
-            pieces.append(compute_launches(spec, a, b, parallel, block))
+            pieces.append(compute_launches(spec, a, b, parallel, block,
+                                           label=not unlabelled))
             took = time.perf_counter() - t0
             if on_unit is not None:
                 on_unit(b - a)
@@ -115,9 +143,11 @@ def compute_chunk(spec_text: str, spec_source: str, lo: int, hi: int, parallel: 
     except KeyboardInterrupt:
         # what is saved is what was computed: a Ctrl-C between a unit's end and `a = b` must not
         # drop that unit (it was already counted as done)
-        got = concat(pieces, spec.variables) if pieces else {}
+        got = fields_of(Unlabelled(pieces, spec.variables, 0)) if pieces else {}
         done = n_launches(got) if got else 0
         raise ChunkInterrupted(got, done) from None
+    if unlabelled:
+        return Unlabelled(pieces, spec.variables, hi - lo)
     return concat(pieces, spec.variables)
 
 

@@ -34,7 +34,7 @@ from ..classify.labels import LABELS
 from ..limits import RunError
 from ..store import netcdf_lock
 from ..store import write_netcdf as _write_netcdf_store
-from .compute import ChunkInterrupted, compile_watch, compute_chunk, n_launches
+from .compute import ChunkInterrupted, compile_watch, compute_chunk, fields_of, n_launches
 from .executors import DASK_WAIT_S, dask_client, run_dask, run_embedded
 from .parts import (
     OutputBusy,
@@ -309,6 +309,7 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
 
         def save(k, result):
             lo, hi, _ = chunks[k]
+            result = fields_of(result)  # labelled here: in the writer's thread, in the background
             with _DeferSigint():
                 try:
                     _write_part(parts, k, lo, hi, spec.digest, result)
@@ -368,7 +369,7 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
             with compile_watch(say) as compiling:
                 if client is None:
                     run_embedded(spec, chunks, todo, finished_behind, partials=partials,
-                                 on_unit=advance_and_check)
+                                 on_unit=advance_and_check, unlabelled=True)
                     settle()
                 else:
                     run_dask(client, spec, chunks, todo, finished, dask_wait_s,
@@ -386,10 +387,11 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
                     lo, hi, _ = chunks[k]
                     try:
                         if exc.done >= hi - lo:
-                            _write_part(parts, k, lo, hi, spec.digest, exc.result)
+                            _write_part(parts, k, lo, hi, spec.digest, fields_of(exc.result))
                             remove_partial(parts, k)
                         else:
-                            write_partial(parts, k, lo, hi, spec.digest, exc.result, exc.done)
+                            write_partial(parts, k, lo, hi, spec.digest, fields_of(exc.result),
+                                          exc.done)
                     except OSError:  # not saved: those launches are not counted as kept
                         state["done"] -= exc.done
                 # dask: each unsaved chunk's launches back in a row from its start

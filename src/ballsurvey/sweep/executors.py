@@ -51,9 +51,11 @@ def task_ranges(chunks: list, todo: list, threads: int, start: dict | None = Non
 
 
 def run_embedded(spec: Spec, chunks: list, todo: list, finished, *, partials=None,
-                 on_unit=None) -> None:
+                 on_unit=None, unlabelled: bool = False) -> None:
     """Chunks `todo` in this process, one after the other; finished(k, result) after each.
     partials: {k: results of chunk k's first launches} kept from an interrupted run.
+    unlabelled: hand `finished` a `compute.Unlabelled` (its labels computed by
+    `compute.fields_of`, in finished's time: a background writer's, while the next chunk runs).
     Ctrl-C raises compute.ChunkInterrupted (with its `chunk`) holding the finished launches."""
     partials = partials or {}
     pace = {}  # the unit size, carried from chunk to chunk
@@ -61,7 +63,8 @@ def run_embedded(spec: Spec, chunks: list, todo: list, finished, *, partials=Non
         lo, hi, _ = chunks[k]
         try:
             result = compute_chunk(spec.text, spec.source, lo, hi, parallel=True,
-                                   done=partials.get(k), on_unit=on_unit, spec=spec, pace=pace)
+                                   done=partials.get(k), on_unit=on_unit, spec=spec, pace=pace,
+                                   unlabelled=unlabelled)
         except KeyboardInterrupt as exc:
             exc.chunk = k
             raise
