@@ -624,3 +624,56 @@ def test_an_output_that_is_no_map_is_named_as_such(tmp_path):
     with pytest.raises(InputError, match="is not a map written by a sweep.*--force"):
         run_sweep(spec, command="test")
     assert spec.output.read_text() == "notes"
+
+
+# ---------------------------------------------------------------------------------------------
+# labels made beside the integration (the part writer's thread)
+
+def test_a_second_ctrl_c_while_an_interrupted_chunk_is_labelled_keeps_what_it_counts(
+        tmp_path, reference, monkeypatch):
+    """Ctrl-C as chunk 1 finishes, then a second one while its launches are labelled for
+    saving: the labelling is not cut short, so the 4 launches the run says it kept are the 4 on
+    disk, and --resume gives the uninterrupted map."""
+    import os
+    import signal
+    import threading
+
+    from ballsurvey.sweep import compute, engine
+
+    spec = tiny_spec(tmp_path, "burst.nc")
+    label = compute.survey_fields
+
+    def burst(run):  # the second Ctrl-C, delivered at once, inside the main thread's labelling
+        if threading.current_thread() is threading.main_thread():
+            os.kill(os.getpid(), signal.SIGINT)
+        return label(run)
+
+    def on_unit(done, total):
+        if done == 4:
+            raise KeyboardInterrupt
+    monkeypatch.setattr(compute, "survey_fields", burst)
+    with pytest.raises(engine.SweepInterrupted) as exc:
+        run_sweep(spec, command="test", on_unit=on_unit)
+    parts = parts_dir(spec.output)
+    on_disk = sorted(p.name for p in parts.glob("chunk-*.npz"))
+    assert on_disk == ["chunk-000000.npz", "chunk-000001.npz"] and exc.value.kept == 4
+    monkeypatch.setattr(compute, "survey_fields", label)
+    same_map(run_sweep(spec, resume=True, command="test"), reference)
+
+
+def test_a_labelled_chunk_lets_its_observer_records_go(tmp_path):
+    """Once `fields_of` has labelled a chunk, the object holds only the fields (not each
+    launch's observer record, held while the next chunk runs); labelling again gives the same
+    arrays."""
+    from ballsurvey.compose import SurveyRun
+    from ballsurvey.sweep import compute
+
+    spec = tiny_spec(tmp_path)
+    u = compute.compute_chunk(spec.text, spec.source, 0, 4, unit=2, spec=spec, unlabelled=True)
+    assert sum(isinstance(p, SurveyRun) for p in u.pieces) == 2
+    first = compute.fields_of(u)
+    assert not any(isinstance(p, SurveyRun) for p in u.pieces)
+    again = compute.fields_of(u)
+    assert compute.n_launches(u) == 4 and set(first) == set(spec.variables)
+    for k in first:
+        assert np.array_equal(first[k], again[k], equal_nan=True) and len(first[k]) == 4

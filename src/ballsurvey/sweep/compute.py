@@ -50,13 +50,22 @@ class Unlabelled:
         self.pieces, self.variables, self.n = pieces, tuple(variables), n
 
     def fields(self) -> dict:
-        return concat([p if isinstance(p, dict) else _select(survey_fields(p), self.variables)
-                       for p in self.pieces], self.variables)
+        """The labelled results; the observer records are let go once labelled (only the
+        fields are kept, however long the object is held)."""
+        out = concat([p if isinstance(p, dict) else _select(survey_fields(p), self.variables)
+                      for p in self.pieces], self.variables) if self.pieces else {}
+        self.pieces = [out] if out else []
+        return out
 
 
 def fields_of(result) -> dict:
     """{variable: array} of a result, labelling an `Unlabelled` one."""
     return result.fields() if isinstance(result, Unlabelled) else result
+
+
+def _count(piece) -> int:
+    """Launches in a piece of `Unlabelled`: a result or a `compose.SurveyRun`."""
+    return n_launches(piece) if isinstance(piece, dict) else len(piece.res.outcome)
 
 
 def _select(f: dict, variables) -> dict:
@@ -113,7 +122,7 @@ def compute_chunk(spec_text: str, spec_source: str, lo: int, hi: int, parallel: 
     chunk to the next (key 'size') instead of starting small in each (a map of many small
     chunks would otherwise spend its time on units of a few launches). The units never change
     a launch's result. unlabelled: return an `Unlabelled` (labelled later by `fields_of`, the
-    same numbers); a Ctrl-C still raises ChunkInterrupted with labelled results."""
+    same numbers); a Ctrl-C then raises ChunkInterrupted with an `Unlabelled` too."""
     if spec is None:
         spec = load_spec(spec_source, text=spec_text)
     pace = {} if pace is None else pace
@@ -142,10 +151,12 @@ def compute_chunk(spec_text: str, spec_source: str, lo: int, hi: int, parallel: 
             a = b
     except KeyboardInterrupt:
         # what is saved is what was computed: a Ctrl-C between a unit's end and `a = b` must not
-        # drop that unit (it was already counted as done)
-        got = fields_of(Unlabelled(pieces, spec.variables, 0)) if pieces else {}
-        done = n_launches(got) if got else 0
-        raise ChunkInterrupted(got, done) from None
+        # drop that unit (it was already counted as done). Unlabelled, the units stay so: the
+        # caller labels them where a second Ctrl-C cannot cut that short (and lose them)
+        got = Unlabelled(pieces, spec.variables, sum(_count(p) for p in pieces))
+        if not unlabelled:
+            got = got.fields()
+        raise ChunkInterrupted(got, n_launches(got) if got else 0) from None
     if unlabelled:
         return Unlabelled(pieces, spec.variables, hi - lo)
     return concat(pieces, spec.variables)
