@@ -677,3 +677,36 @@ def test_a_labelled_chunk_lets_its_observer_records_go(tmp_path):
     assert compute.n_launches(u) == 4 and set(first) == set(spec.variables)
     for k in first:
         assert np.array_equal(first[k], again[k], equal_nan=True) and len(first[k]) == 4
+
+
+@pytest.mark.parametrize("at", [1, 3])
+def test_ctrl_c_while_the_writer_labels_a_chunk_counts_only_what_is_on_disk(tmp_path, reference,
+                                                                            monkeypatch, at):
+    """Ctrl-C (once, or a burst) as the part writer starts labelling chunk 0 (while chunk 1 is
+    integrated) or the last chunk (2): the part in flight is on disk when the run says what it
+    kept, that count is the launches on disk, and --resume gives the uninterrupted map."""
+    import os
+    import signal
+    import threading
+
+    from ballsurvey.sweep import compute, engine
+
+    spec = tiny_spec(tmp_path, f"wl{at}.nc")
+    label, calls = compute.survey_fields, []
+
+    def ctrl_c(run):
+        calls.append(1)
+        if len(calls) == at:
+            assert threading.current_thread() is not threading.main_thread()
+            for _ in range(at):
+                os.kill(os.getpid(), signal.SIGINT)
+        return label(run)
+    monkeypatch.setattr(compute, "survey_fields", ctrl_c)
+    with pytest.raises(engine.SweepInterrupted) as exc:
+        run_sweep(spec, command="test")
+    parts = parts_dir(spec.output)
+    on_disk = sorted(p.name for p in parts.glob("chunk-*.npz"))
+    assert on_disk and exc.value.kept == 2 * len(on_disk), (on_disk, exc.value.kept)
+    assert not list(parts.glob("partial-*")) and not list(parts.glob(".*tmp*"))
+    monkeypatch.setattr(compute, "survey_fields", label)
+    same_map(run_sweep(spec, resume=True, command="test"), reference)

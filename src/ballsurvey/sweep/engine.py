@@ -208,8 +208,11 @@ class _PartWriter:
         self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="ballsurvey-part")
         self.pending = None  # (k, future)
 
-    def submit(self, k: int, result: dict) -> None:
-        self.pending = (k, self.pool.submit(self.save, k, result))
+    def submit(self, k: int, result) -> None:
+        # a Ctrl-C between the hand-over and `pending` would leave a part in flight that no
+        # one waits for (counted as kept, not yet on disk): it is held until `pending` is set
+        with _DeferSigint():
+            self.pending = (k, self.pool.submit(self.save, k, result))
 
     def failed(self) -> bool:
         """The part in flight is done and its save raised."""
