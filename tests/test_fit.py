@@ -83,3 +83,30 @@ def test_a_missing_file_and_a_file_without_t_are_one_line(tmp_path, capsys):
     assert main(["fit", str(tmp_path / "no_t.csv")]) == 2
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 2 and "no such file" in err[0] and "column t" in err[1]
+
+
+def test_the_shipped_example_track_is_reproducible_and_fits_back_to_its_launch(tmp_path):
+    """examples/track-square.csv (the README's `fit` example) is what examples/make_track.py
+    writes (the paper's square at 30 frames/s, 0.2 mm noise), and the fit finds that launch
+    again: every parameter within 3 of its stated standard deviations, a square, and a residual
+    about the noise."""
+    import importlib.util
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    spec = importlib.util.spec_from_file_location("make_track", root / "examples" / "make_track.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    again = mod.main(tmp_path / "track.csv")
+    shipped = root / "examples" / "track-square.csv"
+    # to the file's last digit (1 um), allowing a libm's last bit at a rounding edge
+    a = np.loadtxt(again, delimiter=",", skiprows=1)
+    b = np.loadtxt(shipped, delimiter=",", skiprows=1)
+    assert a.shape == b.shape and np.allclose(a, b, rtol=0.0, atol=2e-6)
+    fit = fit_track(str(shipped))
+    truth = {"theta0_deg": -5.0, "thetadot0": 0.0, "chidot0": 4.05, "phidot0": -3.0,
+             "chi0_deg": 0.0, "x0": 0.0, "y0": 0.0}
+    for k, v in truth.items():
+        assert abs(fit[k] - v) < 3 * fit[f"{k}_err"], (k, fit[k], fit[f"{k}_err"])
+    assert fit["label"] == "square"
+    assert 0.5 * mod.NOISE_M < fit["rms_m"] < 1.5 * mod.NOISE_M

@@ -611,8 +611,10 @@ def plot_fit(track: Track, fit: dict, out=None, ball: Ball | None = None):
         axe.set_xlabel("t since the first sample (s)")
         axe.set_ylabel({"theta_deg": "theta (deg)", "chidot": "chidot (rad/s)"}[k])
         axe.legend(fontsize=8)
-    fig.suptitle(", ".join(f"{k} {fit[k]:.4g}" for k in PARAMS[:5]) + " (deg, rad/s)",
-                 fontsize=9)
+    # two short lines: one long one ran off a one-panel figure at both edges
+    angles = ", ".join(f"{k} {fit[k]:.4g}" for k in PARAMS[:5] if k.endswith("_deg"))
+    rates = ", ".join(f"{k} {fit[k]:.4g}" for k in PARAMS[:5] if not k.endswith("_deg"))
+    fig.suptitle(f"{angles} (deg)\n{rates} (rad/s)", fontsize=9)
     if out is not None:
         fig.savefig(out, dpi=120)
     return fig
