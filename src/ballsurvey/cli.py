@@ -304,14 +304,11 @@ def _where_the_time_went(report: dict, on_dask: bool) -> str:
     reads it."""
     from .compose import TIMES, in_line, phases_text
 
-    def phases(times, per=1):
-        return ", ".join(f"{k} {v / per:.2f} s" for k, v in times.items())
-
     wall = report.get("wall_s", float("nan"))
     if on_dask:
         n = report.get("n_workers", 0)
         kernels = (f"; on each of the {n} workers, on average: "
-                   f"{phases(report['worker_times'], n)}" if n else "")
+                   f"{phases_text(report['worker_times'], per=n, beside=False)}" if n else "")
         start = report.get("cluster_start", "cluster start")
         return (f"  where the time went: dask {start} {report['cluster_start_s']:.2f} s, "
                 f"workers' first call {report.get('workers_start_s', float('nan')):.2f} s "
@@ -355,15 +352,12 @@ def _quiet_dask() -> None:
 
     import distributed  # noqa: F401
 
+    from .sweep.executors import raise_log_levels
+
     # a Ctrl-C inside one of distributed's waits leaves a coroutine unawaited: Python warns
     for module in ("tornado", "distributed", "asyncio"):
         warnings.filterwarnings("ignore", category=RuntimeWarning, module=module)
-    quiet = {"distributed": logging.CRITICAL, "tornado": logging.CRITICAL,
-             "asyncio": logging.CRITICAL}
-    for name in list(logging.root.manager.loggerDict) + list(quiet):
-        top = name.split(".")[0]
-        if top in quiet:  # distributed's config sets some of them one by one
-            logging.getLogger(name).setLevel(quiet[top])
+    raise_log_levels(logging.CRITICAL)
 
 
 def sweep_summary(path, n_launches: int, report: dict) -> str:

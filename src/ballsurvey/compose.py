@@ -37,11 +37,13 @@ TIMES: Counter = Counter()
 BESIDE = "label"
 
 
-def phases_text(times: dict, digits: int = 2) -> str:
+def phases_text(times: dict, digits: int = 2, per: float = 1.0, beside: bool = True) -> str:
     """'integrate 4.70 s, ..., label 0.20 s (beside the integration)': `TIMES` as a run in this
-    process spent them."""
-    return ", ".join(f"{k} {v:.{digits}f} s" + (" (beside the integration)" if k == BESIDE
-                                                else "") for k, v in times.items())
+    process spent them (each divided by `per`; beside False: a dask worker's, whose labels are
+    made in line)."""
+    return ", ".join(f"{k} {v / per:.{digits}f} s"
+                     + (" (beside the integration)" if beside and k == BESIDE else "")
+                     for k, v in times.items())
 
 
 def in_line(times: dict) -> float:

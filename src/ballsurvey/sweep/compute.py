@@ -46,13 +46,19 @@ class Unlabelled:
     one core, and the kernels release the GIL). pieces: results ({variable: array}) and
     `compose.SurveyRun`s, in launch order."""
 
-    def __init__(self, pieces: list, variables, n: int):
-        self.pieces, self.variables, self.n = pieces, tuple(variables), n
+    def __init__(self, pieces: list, variables):
+        self.pieces, self.variables = pieces, tuple(variables)
+
+    @property
+    def n(self) -> int:
+        """How many launches it holds."""
+        return sum(n_launches(p) if isinstance(p, dict) else len(p.res.outcome)
+                   for p in self.pieces)
 
     def fields(self) -> dict:
         """The labelled results; the observer records are let go once labelled (only the
         fields are kept, however long the object is held)."""
-        out = concat([p if isinstance(p, dict) else _select(survey_fields(p), self.variables)
+        out = concat([p if isinstance(p, dict) else _labelled(p, self.variables)
                       for p in self.pieces], self.variables) if self.pieces else {}
         self.pieces = [out] if out else []
         return out
@@ -63,12 +69,9 @@ def fields_of(result) -> dict:
     return result.fields() if isinstance(result, Unlabelled) else result
 
 
-def _count(piece) -> int:
-    """Launches in a piece of `Unlabelled`: a result or a `compose.SurveyRun`."""
-    return n_launches(piece) if isinstance(piece, dict) else len(piece.res.outcome)
-
-
-def _select(f: dict, variables) -> dict:
+def _labelled(run, variables) -> dict:
+    """{variable: array} of a `compose.SurveyRun`, labelled."""
+    f = survey_fields(run)
     return {k: np.asarray(f[k]) for k in variables}
 
 
@@ -82,7 +85,7 @@ def compute_launches(spec: Spec, lo: int, hi: int, parallel: bool = True,
                          observe_every=spec.observe_every,
                          cycles=spec.cycles if spec.mode == "period" else 0,
                          thresholds=spec.thresholds, parallel=parallel, backend=spec.backend)
-    return _select(survey_fields(run), spec.variables) if label else run
+    return _labelled(run, spec.variables) if label else run
 
 
 def _threads(parallel: bool) -> int:
@@ -153,12 +156,12 @@ def compute_chunk(spec_text: str, spec_source: str, lo: int, hi: int, parallel: 
         # what is saved is what was computed: a Ctrl-C between a unit's end and `a = b` must not
         # drop that unit (it was already counted as done). Unlabelled, the units stay so: the
         # caller labels them where a second Ctrl-C cannot cut that short (and lose them)
-        got = Unlabelled(pieces, spec.variables, sum(_count(p) for p in pieces))
+        got = Unlabelled(pieces, spec.variables)
         if not unlabelled:
             got = got.fields()
         raise ChunkInterrupted(got, n_launches(got) if got else 0) from None
     if unlabelled:
-        return Unlabelled(pieces, spec.variables, hi - lo)
+        return Unlabelled(pieces, spec.variables)
     return concat(pieces, spec.variables)
 
 

@@ -224,6 +224,15 @@ def run_dask(client, spec: Spec, chunks: list, todo: list, finished, wait_s: flo
         report.update(workers_start_s=t_warm, n_workers=len(codes), worker_times=total)
 
 
+def raise_log_levels(level: int, tops=("distributed", "tornado", "asyncio")) -> None:
+    """Every logger of the packages `tops` at `level` at least (distributed's config sets some
+    of its loggers one by one, so each is set, not only the package's own)."""
+    for name in list(logging.root.manager.loggerDict) + list(tops):
+        if name.split(".")[0] in tops:
+            logger = logging.getLogger(name)
+            logger.setLevel(max(level, logger.level))
+
+
 def _distributed_log_level() -> int:
     """The level below which the local cluster's processes keep distributed's logs to
     themselves: ERROR, or higher where this process silenced distributed (the CLI does, but
@@ -250,10 +259,7 @@ def _local_worker_plugin(log_level: int = logging.ERROR):
             import signal
 
             signal.signal(signal.SIGINT, signal.SIG_IGN)
-            for name in list(logging.root.manager.loggerDict) + ["distributed", "tornado"]:
-                if name.split(".")[0] in ("distributed", "tornado"):
-                    logging.getLogger(name).setLevel(max(log_level,
-                                                         logging.getLogger(name).level))
+            raise_log_levels(log_level, ("distributed", "tornado"))
 
         def teardown(self, worker):
             import gc
