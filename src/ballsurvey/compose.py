@@ -208,6 +208,20 @@ def run_trajectory(y0_col, params_col, plan: StepPlan, method="rk4", *, n_out=20
     return res
 
 
+def run_resisted_trajectory(y0_col, params_col, rolling_resistance: float, T_nd: float, *,
+                            t_out, method="dopri5", rtol=FALLBACK_RTOL,
+                            atol=FALLBACK_ATOL) -> oc.Result:
+    """One launch with the rolling resistance mu_r = rolling_resistance (> 0;
+    `physics.fixed.rhs_resisted_tuple`): the fixed-frame form by the adaptive pair `method`
+    (with the fallback's first and longest step, so the observer sees each theta cycle), its
+    trajectory at the times t_out (non-dimensional) from the pair's dense output."""
+    p = np.append(np.asarray(params_col, dtype=float).ravel()[:3], float(rolling_resistance))
+    return trajectory_adaptive(np.asarray(y0_col, dtype=float).ravel(), p, T_nd, rtol, atol,
+                               observer=OBSERVER, n_slots=N_OBS, t_out=t_out, fixed_frame=True,
+                               h_init=FALLBACK_H_INIT, h_max=FALLBACK_H_MAX,
+                               tableau=ADAPTIVE[method])
+
+
 def classify(res: oc.Result, flat_face_theta, thresholds: Thresholds = Thresholds()) -> dict:
     """Labels and fields of a run (non-dimensional), with its `formulation` and `t_stop_s`."""
     failure = np.full(res.outcome.shape, -1, dtype=np.int64)

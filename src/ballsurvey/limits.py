@@ -49,6 +49,9 @@ MAX_HEADING_DEG = 1e6
 #: launch inputs with bounds of their own: name -> (largest magnitude, unit)
 LAUNCH_BOUNDS = {"thetadot0": (MAX_RATE, "rad/s"), "chidot0": (MAX_RATE, "rad/s"),
                  "phidot0": (MAX_RATE, "rad/s"), "chi0_deg": (MAX_HEADING_DEG, "deg")}
+#: largest rolling-resistance coefficient mu_r (the couple's lever arm over the ball's radius):
+#: a lever arm as long as the radius is far past any ball that rolls (0.001 to 0.02 on a table)
+MAX_ROLLING_RESISTANCE = 1.0
 #: integer thresholds of the classifier ([classify] table): name -> (lowest, highest)
 CLASSIFY_INT_RANGES = {"min_cycles": (1, 10**4), "max_star_points": (2, 1000)}
 
@@ -102,6 +105,12 @@ def number(name: str, v, *, positive: bool = False, nonnegative: bool = False,
     if hi is not None and v > hi:
         raise InputError(f"{name}: must be <= {hi:g}, got {v!r}")
     return v if integer else float(v)
+
+
+def rolling_resistance(v, label: str = "rolling_resistance") -> float:
+    """The rolling-resistance coefficient mu_r (dimensionless): a finite number in
+    [0, MAX_ROLLING_RESISTANCE]."""
+    return number(label, v, nonnegative=True, hi=MAX_ROLLING_RESISTANCE)
 
 
 def launch_value(name: str, v, label: str | None = None) -> float:

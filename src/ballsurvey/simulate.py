@@ -5,6 +5,7 @@ kept; it is labelled by the same observer and labeller, so a path and a map agre
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -13,11 +14,12 @@ import xarray as xr
 from . import limits
 from .ball import Ball, tilt_error
 from .classify.labels import CORNER_KINDS, LABELS, Thresholds
-from .compose import METHODS, classify, run_trajectory
+from .compose import METHODS, classify, run_resisted_trajectory, run_trajectory
 from .integrate.outcome import FORMULATIONS
 from .integrate.tableaus import ADAPTIVE, FIXED_STEP
 from .physics.euler import contact, energy
 from .physics.fast import S_CHD, S_CHI, S_CTH, S_PHD, S_PHI, S_STH, S_TH, S_THD, S_X, S_Y
+from .physics.fixed import contact_fixed, euler_to_fixed
 from .units import StepPlan, fields_to_si, launch_state
 
 #: default probe length (m): the paper does not give its wire's length; one ball radius puts the
@@ -51,14 +53,20 @@ def body_points(x, y, theta, chi, ball: Ball, probe_m: float = PROBE_M) -> dict:
     return out
 
 
-def contact_forces(s: np.ndarray, ball: Ball) -> np.ndarray:
+def contact_forces(s: np.ndarray, ball: Ball, rolling_resistance: float = 0.0) -> np.ndarray:
     """Net force on the ball (N) and torque about G (N m) along fast states s (n, N_FAST):
     columns Fx, Fy (friction, Eqs. 16-19), Fz = N - M g (Eq. 20), N, tau_x, tau_y, tau_z
-    (Eqs. 21-24)."""
+    (Eqs. 21-24). With a rolling resistance mu_r > 0, those of the resisted equations
+    (`physics.fixed.contact_fixed`), the torque with the rolling resistance's couple."""
     p = ball.nondim_params()
     out = np.empty((s.shape[0], 7))
+    if rolling_resistance:
+        p = np.append(p, float(rolling_resistance))
     for k, r in enumerate(s):
-        fx, fy, n, tx, ty, tz = contact(r[:8], p)
+        if rolling_resistance:
+            fx, fy, n, tx, ty, tz = contact_fixed(euler_to_fixed(r[:8]), p)
+        else:
+            fx, fy, n, tx, ty, tz = contact(r[:8], p)
         out[k] = fx, fy, n - 1.0, n, tx, ty, tz
     weight = ball.M * ball.g
     out[:, :4] *= weight
@@ -105,7 +113,8 @@ def simulate(theta0_deg: float, thetadot0: float, chidot0: float, phidot0: float
              dt: float = 1e-4, chi0_deg: float = 0.0, x0: float = 0.0, y0: float = 0.0,
              ball: Ball | None = None, n_out: int = 2001, method: str = "rk4",
              thresholds: Thresholds | None = None, rtol: float = 1e-9,
-             atol: float = 1e-12, probe_m: float = PROBE_M) -> xr.Dataset:
+             atol: float = 1e-12, probe_m: float = PROBE_M,
+             rolling_resistance: float = 0.0) -> xr.Dataset:
     """Integrate one launch and return its trajectory, labelled like a map's launch.
 
     Parameters
@@ -148,6 +157,13 @@ def simulate(theta0_deg: float, thetadot0: float, chidot0: float, phidot0: float
     probe_m : float
         Length (m) of the probe on the flat face, along the symmetry axis (0: its tip is the
         face's centre).
+    rolling_resistance : float
+        The rolling-resistance coefficient mu_r (dimensionless, 0 to 1): a couple of magnitude
+        mu_r N a opposing the rolling (docs/physics.md, "Rolling resistance"); 0 (the default):
+        the rolling model without it, as the paper has it. Above 0 the launch is integrated in
+        the fixed frame by the adaptive pair (dopri5 with rtol, atol, whatever `method` names a
+        fixed-step one: attrs method says which), the energy falls as the couple dissipates it,
+        and the label is not marked inaccurate for that fall.
 
     Returns
     -------
@@ -180,20 +196,29 @@ def simulate(theta0_deg: float, thetadot0: float, chidot0: float, phidot0: float
     check_simulate_inputs(theta0_deg, thetadot0, chidot0, phidot0, T, dt, chi0_deg, x0, y0, ball,
                           n_out, method, rtol, atol)
     probe_m = limits.number("probe_m", probe_m, lo=0.0, hi=1.0)
+    mu_r = limits.rolling_resistance(rolling_resistance)
     tu, a = ball.time_unit, ball.a
     th = thresholds or Thresholds()
     p = ball.nondim_params()
     y_init = launch_state(theta0_deg, thetadot0, chidot0, phidot0, tu, chi0_deg=chi0_deg, x0=x0,
                           y0=y0, length_unit=a)
+    if mu_r > 0.0:  # the resisted equations: fixed frame, adaptive; energy falls by design
+        method = method if method in ADAPTIVE else "dopri5"
+        th = dataclasses.replace(th, max_energy_drift=math.inf)
     fixed = method in FIXED_STEP
     plan = StepPlan(T, dt, tu, multiple=n_out - 1 if fixed else 1)
-    res = run_trajectory(y_init[:, 0], p, plan, method, n_out=n_out, rtol=rtol, atol=atol,
-                         thresholds=th)
+    if mu_r > 0.0:
+        res = run_resisted_trajectory(y_init[:, 0], p, mu_r, plan.T_nd,
+                                      t_out=np.linspace(0.0, plan.T_nd, n_out), method=method,
+                                      rtol=rtol, atol=atol)
+    else:
+        res = run_trajectory(y_init[:, 0], p, plan, method, n_out=n_out, rtol=rtol, atol=atol,
+                             thresholds=th)
     t_nd, s = res.t, res.traj
     formulation = FORMULATIONS[int(res.formulation[0])]
     dt_used = plan.dt_nd * tu if fixed else math.nan
     e = np.array([energy(r[S_STH], r[S_CTH], r[S_THD], r[S_CHD], r[S_PHD], *p) for r in s])
-    forces = contact_forces(s, ball)  # Fx, Fy, Fz, N (N), tau_x, tau_y, tau_z (N m)
+    forces = contact_forces(s, ball, mu_r)  # Fx, Fy, Fz, N (N), tau_x, tau_y, tau_z (N m)
     with np.errstate(divide="ignore", invalid="ignore"):
         fric = np.where(forces[:, 3] > 0.0, np.hypot(forces[:, 0], forces[:, 1]) / forces[:, 3],
                         np.inf)
@@ -246,7 +271,7 @@ def simulate(theta0_deg: float, thetadot0: float, chidot0: float, phidot0: float
     ds.attrs.update(label=label, corner_kind=kind, dt_s=dt_used, method=method,
                     formulation=formulation, theta0_deg=theta0_deg, thetadot0=thetadot0,
                     chidot0=chidot0, phidot0=phidot0, chi0_deg=chi0_deg, T_s=T,
-                    probe_m=probe_m)
+                    probe_m=probe_m, rolling_resistance=mu_r)
     if method in ADAPTIVE:
         ds.attrs.update(rtol=rtol, atol=atol)
     ds.attrs.update({f"ball_{k}": v for k, v in ball.as_dict().items()})

@@ -36,11 +36,41 @@ def _cross(a0, a1, a2, b0, b1, b2):
 
 @jit
 def rhs(v, p, out):
-    """dv/dt for the fixed-frame state array v, parameters p = (c, A, B), into out."""
-    d = rhs_tuple((v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8], v[9], v[10]),
-                  p[0], p[1], p[2])
+    """dv/dt for the fixed-frame state array v, parameters p = (c, A, B), into out; with a
+    fourth parameter mu_r = p[3] (not 0), the rolling resistance's torque too
+    (`rhs_resisted_tuple`)."""
+    vt = (v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8], v[9], v[10])
+    if p.shape[0] > 3 and p[3] != 0.0:
+        d = rhs_resisted_tuple(vt, p[0], p[1], p[2], p[3])
+    else:
+        d = rhs_tuple(vt, p[0], p[1], p[2])
     for q in range(N_FIXED):
         out[q] = d[q]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")  # inlined as rhs_tuple is
+def _contact_inertia_cofactors(ex, ey, ez, c, A, B):
+    """The inertia about the contact point K = A 1 + (B - A) e e^T + |s|^2 1 - s s^T (s = c e +
+    z_hat) as its cofactors and determinant (c00, c01, c02, c11, c12, c22, det): K^-1 r is
+    (c00 r0 + c01 r1 + c02 r2, c01 r0 + c11 r1 + c12 r2, c02 r0 + c12 r1 + c22 r2) / det
+    (K is symmetric positive definite)."""
+    sx, sy, sz = c * ex, c * ey, c * ez + 1.0
+    s2 = sx * sx + sy * sy + sz * sz
+    d = B - A
+    k00 = A + d * ex * ex + s2 - sx * sx
+    k11 = A + d * ey * ey + s2 - sy * sy
+    k22 = A + d * ez * ez + s2 - sz * sz
+    k01 = d * ex * ey - sx * sy
+    k02 = d * ex * ez - sx * sz
+    k12 = d * ey * ez - sy * sz
+    c00 = k11 * k22 - k12 * k12
+    c01 = k02 * k12 - k01 * k22
+    c02 = k01 * k12 - k02 * k11
+    c11 = k00 * k22 - k02 * k02
+    c12 = k01 * k02 - k00 * k12
+    c22 = k00 * k11 - k01 * k01
+    det = k00 * c00 + k01 * c01 + k02 * c02
+    return c00, c01, c02, c11, c12, c22, det
 
 
 # inlined by numba itself: LLVM's inliner finds it too big, and a call in a loop over launches stops
@@ -52,15 +82,7 @@ def rhs_tuple(v, c, A, B):
     ex, ey, ez = v[EX], v[EY], v[EZ]
     wx, wy, wz = v[WX], v[WY], v[WZ]
     sx, sy, sz = c * ex, c * ey, c * ez + 1.0  # s = c e + z_hat
-    # inertia about G: A 1 + (B - A) e e^T ; about P: + |s|^2 1 - s s^T
-    s2 = sx * sx + sy * sy + sz * sz
     d = B - A
-    k00 = A + d * ex * ex + s2 - sx * sx
-    k11 = A + d * ey * ey + s2 - sy * sy
-    k22 = A + d * ez * ez + s2 - sz * sz
-    k01 = d * ex * ey - sx * sy
-    k02 = d * ex * ez - sx * sz
-    k12 = d * ey * ez - sy * sz
     ew = ex * wx + ey * wy + ez * wz
     lx, ly, lz = A * wx + d * ew * ex, A * wy + d * ew * ey, A * wz + d * ew * ez  # I_G w
     gx, gy, gz = _cross(wx, wy, wz, lx, ly, lz)
@@ -69,20 +91,85 @@ def rhs_tuple(v, c, A, B):
     qx, qy, qz = c * qx, c * qy, c * qz + 1.0
     tx, ty, tz = _cross(sx, sy, sz, qx, qy, qz)
     r0, r1, r2 = -gx - tx, -gy - ty, -gz - tz
-    # symmetric 3x3 solve by cofactors (K is positive definite)
-    c00 = k11 * k22 - k12 * k12
-    c01 = k02 * k12 - k01 * k22
-    c02 = k01 * k12 - k02 * k11
-    c11 = k00 * k22 - k02 * k02
-    c12 = k01 * k02 - k00 * k12
-    c22 = k00 * k11 - k01 * k01
-    det = k00 * c00 + k01 * c01 + k02 * c02
+    c00, c01, c02, c11, c12, c22, det = _contact_inertia_cofactors(ex, ey, ez, c, A, B)
     vx, vy = centre_velocity(v, c)
     bx, by, bz = _cross(wx, wy, wz, v[BX], v[BY], v[BZ])
     return (vx, vy, wex, wey, wez, bx, by, bz,
             (c00 * r0 + c01 * r1 + c02 * r2) / det,
             (c01 * r0 + c11 * r1 + c12 * r2) / det,
             (c02 * r0 + c12 * r1 + c22 * r2) / det)
+
+
+#: the rolling resistance's regularisation (non-dimensional angular speed, in units of
+#: sqrt(g / a): 0.0197 rad/s for the paper's ball): the torque's direction is
+#: w_h / sqrt(|w_h|^2 + ROLLING_EPS^2), so it turns smoothly through a standstill of the rolling
+ROLLING_EPS = 1e-3
+
+
+@jit
+def rolling_direction(wx, wy):
+    """(u_x, u_y) = w_h / sqrt(|w_h|^2 + ROLLING_EPS^2): the regularised unit vector of the
+    rolling part w_h = (w_x, w_y, 0) of the angular velocity."""
+    inv = 1.0 / math.sqrt(wx * wx + wy * wy + ROLLING_EPS * ROLLING_EPS)
+    return wx * inv, wy * inv
+
+
+@jit
+def rhs_resisted_tuple(v, c, A, B, mu_r):
+    """`rhs_tuple` with the rolling resistance: a couple tau_r = -mu_r N a u (u from
+    `rolling_direction`, N the normal force) on the ball, opposing its rolling.
+
+    With tau_r added, K wdot = r + tau_r, where K wdot0 = r is the motion without it
+    (`rhs_tuple`). N = M (g + c e_z'') depends on wdot through e_z'' = (wdot x e + w x
+    edot)_z; N is linear in wdot, so the system stays linear: with k = K^-1 u,
+    wdot = wdot0 - mu_r N k and N = N0 / (1 + mu_r c (k x e)_z), N0 the normal force of wdot0
+    (non-dimensional: N / (M g), tau_r / (M g a)). The rest of the rate (G's velocity, edot,
+    bdot) is kinematic and does not change."""
+    d = rhs_tuple(v, c, A, B)
+    ex, ey, ez = v[EX], v[EY], v[EZ]
+    wx, wy = v[WX], v[WY]
+    ux, uy = rolling_direction(wx, wy)
+    c00, c01, c02, c11, c12, c22, det = _contact_inertia_cofactors(ex, ey, ez, c, A, B)
+    kx, ky, kz = (c00 * ux + c01 * uy) / det, (c01 * ux + c11 * uy) / det, (
+        c02 * ux + c12 * uy) / det
+    # N0 = 1 + c e_z'' of the motion without the couple (`centre_acceleration`)
+    ezdd = (d[WX] * ey - d[WY] * ex) + (wx * d[EY] - wy * d[EX])
+    n = (1.0 + c * ezdd) / (1.0 + mu_r * c * (kx * ey - ky * ex))
+    m = mu_r * n
+    return (d[0], d[1], d[2], d[3], d[4], d[5], d[6], d[7],
+            d[WX] - m * kx, d[WY] - m * ky, d[WZ] - m * kz)
+
+
+@jit
+def rolling_torque(v, dv, c, mu_r):
+    """(tau_x, tau_y, tau_z, power): the rolling resistance's couple tau_r = -mu_r N a u
+    (`rhs_resisted_tuple`) on a fixed-frame state with its rate dv, and the power it
+    dissipates tau_r . w (<= 0), non-dimensional (/ M g a, / M g a sqrt(g / a))."""
+    _, _, ezdd = centre_acceleration(v, dv, c)
+    ux, uy = rolling_direction(v[WX], v[WY])
+    m = mu_r * (1.0 + c * ezdd)
+    tx, ty = -m * ux, -m * uy
+    return tx, ty, 0.0, tx * v[WX] + ty * v[WY]
+
+
+@jit
+def contact_fixed(v, p):
+    """The table's force and torque about G on a fixed-frame state, non-dimensional (force /
+    M g, torque / M g a), as `euler.contact` gives them (Fx, Fy, N, tau_x, tau_y, tau_z) but
+    chart-free and with the rolling resistance of p[3] where p has it: the reaction
+    R = M a_G + M g z_hat at the contact point P (a_G from `centre_acceleration`), its torque
+    about G -s x R (s = c e + z_hat, from P to G), plus the couple tau_r."""
+    dv = np.empty(N_FIXED)
+    rhs(v, p, dv)
+    c = p[0]
+    ax, ay, ezdd = centre_acceleration(v, dv, c)
+    rz = 1.0 + c * ezdd
+    sx, sy, sz = c * v[EX], c * v[EY], c * v[EZ] + 1.0
+    tx, ty, tz = _cross(sx, sy, sz, ax, ay, rz)
+    if p.shape[0] > 3 and p[3] != 0.0:
+        rx, ry, rzz, _ = rolling_torque(v, dv, c, p[3])
+        return ax, ay, rz, rx - tx, ry - ty, rzz - tz
+    return ax, ay, rz, -tx, -ty, -tz
 
 
 def energy(v: np.ndarray, p: np.ndarray) -> float:
