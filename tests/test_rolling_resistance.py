@@ -198,3 +198,39 @@ def test_coefficient_slows_the_ball_more():
 def test_bad_coefficient_is_refused(bad):
     with pytest.raises(InputError, match="rolling_resistance"):
         simulate(**SQUARE, T=0.1, rolling_resistance=bad)
+
+
+# --- the command line ------------------------------------------------------------------------
+
+def test_path_and_animate_integrate_with_the_rolling_resistance(tmp_path, capsys, monkeypatch):
+    import sys
+
+    from ballsurvey.cli import main
+
+    sim = sys.modules["ballsurvey.simulate"]  # the module (the package's name is the function)
+
+    made = []
+
+    def spy(*args, **kw):
+        ds = simulate(*args, **kw)
+        made.append(ds)
+        return ds
+
+    monkeypatch.setattr(sim, "simulate", spy)
+    launch = ["--theta0-deg", "-5", "--chidot0", "4.05", "--phidot0", "-3", "--T", "0.5"]
+    assert main(["path", *launch, "--n-out", "101", "--rolling-resistance", "0.02",
+                 "-o", str(tmp_path / "p.png")]) == 0
+    assert main(["animate", *launch, "--fps", "4", "--speed", "1", "--rolling-resistance",
+                 "0.02", "-o", str(tmp_path / "a.gif")]) == 0
+    assert (tmp_path / "p.png").stat().st_size > 0 and (tmp_path / "a.gif").stat().st_size > 0
+    for ds in made:
+        assert ds.attrs["rolling_resistance"] == 0.02
+        e = ds.energy.values
+        assert e[-1] < e[0] * (1 - 1e-3)
+    assert len(made) == 2
+    capsys.readouterr()
+    for cmd in (["path", *launch, "-o", str(tmp_path / "q.png")],
+                ["animate", *launch, "-o", str(tmp_path / "q.gif")]):
+        assert main(cmd + ["--rolling-resistance", "-0.1"]) == 2
+        err = capsys.readouterr().err
+        assert "--rolling-resistance: must be >= 0" in err and err.count("\n") == 1

@@ -509,6 +509,7 @@ def _cmd_path(args):
         if w not in BODY_POINTS:
             raise UserError(f"--show: unknown body point {w!r}; known: {', '.join(BODY_POINTS)}")
     probe = _opt("--probe-m", args.probe_m, nonnegative=True, hi=1.0)
+    mu_r = _rolling_opt(args)
     forces_out = out.with_name(out.stem + "-forces" + out.suffix) if args.forces else None
     if forces_out is not None:
         _out_file("--forces", str(forces_out), out.suffix)  # a folder there, unwritable: refused
@@ -520,7 +521,8 @@ def _cmd_path(args):
     except limits.InputError as exc:
         raise UserError(str(exc)) from None
     ds = simulate(args.theta0_deg, args.thetadot0, args.chidot0, args.phidot0, T, dt=args.dt,
-                  chi0_deg=args.chi0_deg, n_out=args.n_out, ball=ball, probe_m=probe)
+                  chi0_deg=args.chi0_deg, n_out=args.n_out, ball=ball, probe_m=probe,
+                  rolling_resistance=mu_r)
     drawn, shown = ds, ""
     if args.T is None:  # the label from PATH_T seconds, the figure of a few orbits
         window = orbit_window(ds.attrs, T)
@@ -575,6 +577,22 @@ def _add_launch_options(parser) -> None:
                         help="initial heading (deg)")
 
 
+def _add_rolling_option(parser) -> None:
+    """--rolling-resistance of a command that integrates one launch (path, animate)."""
+    parser.add_argument("--rolling-resistance", type=float, default=0.0, metavar="MU",
+                        help="rolling-resistance coefficient mu_r (dimensionless: the lever arm "
+                             "of the couple mu_r N a that opposes the rolling, over the ball's "
+                             "radius a; 0.001-0.02 on a table); 0: none, as the paper. Above 0 "
+                             "the launch is integrated in the fixed frame by dopri5")
+
+
+def _rolling_opt(args) -> float:
+    from . import limits
+
+    return _opt("--rolling-resistance", args.rolling_resistance, nonnegative=True,
+                hi=limits.MAX_ROLLING_RESISTANCE)
+
+
 def _add_drawn_axes_options(parser) -> None:
     """--x and --y of a command that draws a map (plot, explore): both choose alike."""
     parser.add_argument("--x", metavar="AXIS",
@@ -608,6 +626,7 @@ def _cmd_animate(args):
     fps = _opt("--fps", args.fps, positive=True, hi=120)
     speed = _opt("--speed", args.speed, positive=True, hi=100)
     probe = _opt("--probe-m", args.probe_m, nonnegative=True, hi=1.0)
+    mu_r = _rolling_opt(args)
     try:
         out = check_output(args.output)
     except limits.InputError as exc:
@@ -620,7 +639,8 @@ def _cmd_animate(args):
         frames = frame_count(args.T, fps, speed)
         n_out = int(min(max(round(args.T / args.dt), 1), 20000)) + 1
         ds = simulate(args.theta0_deg, args.thetadot0, args.chidot0, args.phidot0, args.T,
-                      dt=args.dt, chi0_deg=args.chi0_deg, n_out=n_out, ball=ball, probe_m=probe)
+                      dt=args.dt, chi0_deg=args.chi0_deg, n_out=n_out, ball=ball, probe_m=probe,
+                      rolling_resistance=mu_r)
     except limits.InputError as exc:
         raise UserError(str(exc)) from None
     write_animation(ds, out, ball=ball, fps=fps, speed=speed)
@@ -1014,6 +1034,7 @@ def build_parser() -> argparse.ArgumentParser:
     q.add_argument("--forces", action="store_true",
                    help="also draw the net force (N) and torque about G (N m) against time, as "
                         "the paper's Figs. 4b, 7b, into FILE-forces (FILE's suffix)")
+    _add_rolling_option(q)
     _add_ball_options(q)
     q.set_defaults(func=_cmd_path)
 
@@ -1047,6 +1068,7 @@ def build_parser() -> argparse.ArgumentParser:
                          "quick turns near theta = 90 deg can be followed)")
     an.add_argument("--probe-m", type=float, default=0.0254, metavar="METRES",
                     help="probe length (m) on the flat face")
+    _add_rolling_option(an)
     an.add_argument("-o", "--output", required=True, metavar="FILE.gif|FILE.mp4",
                     help="GIF (Pillow, always there) or MP4 (needs ffmpeg on the PATH)")
     _add_ball_options(an)

@@ -543,7 +543,10 @@ def launch_title(attrs: dict) -> str:
              if _finite(attrs.get(k))]
     if _finite(attrs.get("chi0_deg")) and float(attrs["chi0_deg"]) != 0.0:
         parts.append(axis_value_text("chi0_deg", float(attrs["chi0_deg"])))
-    return ", ".join(parts) + "\n" + ball_text(attrs)
+    ball = ball_text(attrs)
+    if _finite(attrs.get("rolling_resistance")) and float(attrs["rolling_resistance"]) > 0.0:
+        ball += f", rolling resistance mu_r = {float(attrs['rolling_resistance']):.3g}"
+    return ", ".join(parts) + "\n" + ball
 
 
 # ----------------------------------------------------------------------------------------------
