@@ -650,19 +650,20 @@ def _cmd_animate(args):
 def _cmd_fit(args):
     import json
 
-    from .fit import PARAMS, UNITS, fit_track, plot_fit, read_track
+    from .fit import PARAMS, SLOWING, UNITS, fit_track, plot_fit, read_track
 
     out = _out_file("-o/--output", args.output, ".png")
     probe = _opt("--probe-m", args.probe_m, positive=True, hi=1.0)
     ball = _ball_arg(args)
     track = read_track(args.track, probe_m=probe)
-    fit = fit_track(track, ball)
+    fit = fit_track(track, ball, slowing=args.slowing)
+    params = PARAMS + (SLOWING,) * args.slowing
     # the numbers first: a plot that cannot be written (exit 1) leaves them printed
     if args.format == "json":
-        keys = [k for p in PARAMS for k in (p, p + "_err")] + ["rms_m", "label"]
+        keys = [k for p in params for k in (p, p + "_err")] + ["rms_m", "label"]
         print(json.dumps({k: fit[k] for k in keys}), flush=True)
     else:
-        for k in PARAMS:
+        for k in params:
             print(f"{k:11s} {fit[k]:+.6g} +- {fit[k + '_err']:.2g} {UNITS[k]}")
         print(f"rms_m       {fit['rms_m']:.3g} m (position residual per coordinate)")
         print(f"label       {fit['label']}")
@@ -1082,9 +1083,15 @@ def build_parser() -> argparse.ArgumentParser:
     ft.add_argument("--probe-m", type=float, metavar="METRES",
                     help="probe length (m), for a track of the probe's tip and base")
     ft.add_argument("-o", "--output", metavar="FILE.png", help="also draw track and fit (PNG)")
+    ft.add_argument("--slowing", action="store_true",
+                    help="the ball slows (every real ball on a real table does): fit the "
+                         "rolling-resistance coefficient (dimensionless, as path's "
+                         "--rolling-resistance) with the launch; the output gains "
+                         "rolling_resistance and its _err")
     ft.add_argument("--format", choices=("text", "json"), default="text",
                     help="json: keys theta0_deg, thetadot0, chidot0, phidot0, chi0_deg, x0, y0 "
-                         "(deg, rad/s, m; each with _err, one standard deviation), rms_m, label")
+                         "(deg, rad/s, m; each with _err, one standard deviation), with "
+                         "--slowing rolling_resistance (1) and its _err, rms_m, label")
     _add_ball_options(ft)
     ft.set_defaults(func=_cmd_fit)
 

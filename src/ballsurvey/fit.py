@@ -33,16 +33,21 @@ import numpy as np
 
 from . import limits
 from .ball import Ball
-from .compose import run_tracks, run_trajectory
+from .compose import run_resisted_trajectory, run_tracks, run_trajectory
 from .integrate.outcome import OK
-from .physics.fast import S_CHD, S_CHI, S_TH, S_X, S_Y
+from .physics.fast import N_FAST, S_CHD, S_CHI, S_TH, S_X, S_Y
 from .simulate import body_points, simulate
 from .units import StepPlan, launch_state
 
 #: the launch the fit returns, in order, with units
 PARAMS = ("theta0_deg", "thetadot0", "chidot0", "phidot0", "chi0_deg", "x0", "y0")
 UNITS = {"theta0_deg": "deg", "thetadot0": "rad/s", "chidot0": "rad/s", "phidot0": "rad/s",
-         "chi0_deg": "deg", "x0": "m", "y0": "m"}
+         "chi0_deg": "deg", "x0": "m", "y0": "m", "rolling_resistance": "1"}
+#: the extra parameter a fit of a slowing ball (`fit_track(slowing=True)`) returns after PARAMS:
+#: the rolling-resistance coefficient mu_r (dimensionless, `simulate`'s rolling_resistance)
+SLOWING = "rolling_resistance"
+#: where the slowing fit's coefficient starts (a rolling ball on a table: 0.001 to 0.02)
+SLOWING_START = 1e-3
 #: nominal measurement errors that weight the residual channels
 POSITION_SIGMA_M = 1e-4
 THETA_SIGMA_DEG = 0.1
@@ -275,6 +280,22 @@ def _integrate(dyn: np.ndarray, ball: Ball, T: float, dt: float, every: int):
     return t_nd * tu, traj, ok, valid
 
 
+def _integrate_resisted(dyn: np.ndarray, ball: Ball, t: np.ndarray):
+    """`_integrate` for launches dyn (5, n) that slow: theta0_deg, thetadot0, chidot0, phidot0
+    and the rolling-resistance coefficient, each by `compose.run_resisted_trajectory`, sampled
+    at the times t (s) themselves: (t, traj (n_t, N_FAST, n), ok (n,))."""
+    tu = ball.time_unit
+    traj = np.empty((t.size, N_FAST, dyn.shape[1]))
+    ok = np.empty(dyn.shape[1], dtype=bool)
+    for j in range(dyn.shape[1]):
+        y0 = launch_state(dyn[0, j], dyn[1, j], dyn[2, j], dyn[3, j], tu)[:, 0]
+        res = run_resisted_trajectory(y0, ball.nondim_params(), dyn[4, j], t[-1] / tu,
+                                      t_out=t / tu)
+        traj[:, :, j] = res.traj
+        ok[j] = res.outcome[0] == OK and bool(np.isfinite(res.traj[:, :S_Y + 1]).all())
+    return t, traj, ok
+
+
 def _fallback_traj(q, ball: Ball, T: float, dt: float, n_t: int) -> np.ndarray:
     """One launch's samples through `run_trajectory`, which integrates again in the fixed frame
     a launch that meets the Euler chart's singularity (near-vertical)."""
@@ -288,8 +309,11 @@ def _fallback_traj(q, ball: Ball, T: float, dt: float, n_t: int) -> np.ndarray:
 class _Model:
     """Residuals and Jacobian of one track's fit over its first T seconds."""
 
-    def __init__(self, track: Track, ball: Ball, T: float):
-        self.track, self.ball = track, ball
+    def __init__(self, track: Track, ball: Ball, T: float, slowing: bool = False):
+        self.track, self.ball, self.slowing = track, ball, slowing
+        # the parameters the integration takes (the rest turn and shift its positions): the
+        # launch's four rates and tilt, and with slowing the rolling-resistance coefficient
+        self.dyn = [0, 1, 2, 3, 7] if slowing else [0, 1, 2, 3]
         m = track.t <= T + 1e-12
         self.idx = np.flatnonzero(m)
         self.T = float(track.t[self.idx[-1]])
@@ -298,11 +322,14 @@ class _Model:
         self.cache: dict = {}
 
     def _run(self, dyn: np.ndarray) -> list[dict]:
-        times, traj, ok, _ = _integrate(dyn, self.ball, self.T, FIT_DT, 1)
+        if self.slowing:
+            times, traj, ok = _integrate_resisted(dyn, self.ball, self.track.t[self.idx])
+        else:
+            times, traj, ok, _ = _integrate(dyn, self.ball, self.T, FIT_DT, 1)
         out = []
         for j in range(dyn.shape[1]):
             tr = traj[:, :, j:j + 1]
-            if not ok[j]:
+            if not ok[j] and not self.slowing:  # the resisted run is in the fixed frame already
                 tr = _fallback_traj(dyn[:, j], self.ball, self.T, FIT_DT, times.size)
             loc = _model_local(tr, self.ball, self.track.probe_m)
             tt = self.track.t[self.idx]
@@ -317,17 +344,20 @@ class _Model:
     def fun(self, q: np.ndarray) -> np.ndarray:
         key = q.tobytes()
         if key not in self.cache:
-            self.cache = {key: self._run(q[:4].reshape(4, 1))[0]}
-        return self.residual_of(_place(self.cache[key], *q[4:]))
+            self.cache = {key: self._run(q[self.dyn].reshape(-1, 1))[0]}
+        return self.residual_of(_place(self.cache[key], *q[4:7]))
 
     def jac(self, q: np.ndarray) -> np.ndarray:
-        h = 1e-7 * np.maximum(1.0, np.abs(q[:4]))
-        dyn = np.repeat(q[:4].reshape(4, 1), 5, axis=1)
-        dyn[np.arange(4), np.arange(1, 5)] += h
+        nd = len(self.dyn)
+        h = 1e-7 * np.maximum(1.0, np.abs(q[self.dyn]))
+        dyn = np.repeat(q[self.dyn].reshape(nd, 1), nd + 1, axis=1)
+        dyn[np.arange(nd), np.arange(1, nd + 1)] += h
         runs = self._run(dyn)
         self.cache = {q.tobytes(): runs[0]}
-        r0 = self.residual_of(_place(runs[0], *q[4:]))
-        cols = [(self.residual_of(_place(runs[k + 1], *q[4:])) - r0) / h[k] for k in range(4)]
+        r0 = self.residual_of(_place(runs[0], *q[4:7]))
+        cols = [(self.residual_of(_place(runs[k + 1], *q[4:7])) - r0) / h[k] for k in range(nd)]
+        slowing_col = cols[4:]  # the coefficient's column goes last, after chi0, x0, y0
+        cols = cols[:4]
         # chi0, x0, y0 turn and shift the positions: their columns in closed form
         loc, rad = runs[0], math.radians(q[4])
         c, s = math.cos(rad), math.sin(rad)
@@ -343,7 +373,7 @@ class _Model:
                 dx[px], dx[py], dy[px], dy[py] = one, zero, zero, one
         for d in (dchi, dx, dy):
             cols.append(np.concatenate([d[k] / _sigma(k) for k in self.names]))
-        return np.column_stack(cols)
+        return np.column_stack(cols + slowing_col)
 
 
 # --- the global start -----------------------------------------------------------------------
@@ -461,25 +491,26 @@ def survey(track: Track, ball: Ball, *, box=None, grid=None, T: float = SURVEY_T
 
 # --- the fit --------------------------------------------------------------------------------
 
-def _bounds(ball: Ball):
+def _bounds(ball: Ball, slowing: bool = False):
     flat = math.degrees(ball.flat_face_theta_rad)
     r = limits.MAX_RATE
-    lo = [flat + 1e-3, -r, -r, -r, -np.inf, -np.inf, -np.inf]
-    hi = [89.9, r, r, r, np.inf, np.inf, np.inf]
+    lo = [flat + 1e-3, -r, -r, -r, -np.inf, -np.inf, -np.inf] + [0.0] * slowing
+    hi = [89.9, r, r, r, np.inf, np.inf, np.inf] + [limits.MAX_ROLLING_RESISTANCE] * slowing
     return np.array(lo), np.array(hi)
 
 
 def _refine(model: _Model, q0: np.ndarray, ball: Ball, max_nfev: int):
     from scipy.optimize import least_squares
 
-    lo, hi = _bounds(ball)
+    lo, hi = _bounds(ball, model.slowing)
     q0 = np.clip(q0, lo + 1e-9, hi - 1e-9)
     return least_squares(model.fun, q0, jac=model.jac, bounds=(lo, hi), x_scale="jac",
                          method="trf", max_nfev=max_nfev, xtol=1e-12, ftol=1e-12, gtol=1e-12)
 
 
 def fit_track(track, ball: Ball | None = None, *, probe_m: float | None = None, box=None,
-              grid=None, n_starts: int = N_STARTS, label_T: float = LABEL_T) -> dict:
+              grid=None, n_starts: int = N_STARTS, label_T: float = LABEL_T,
+              slowing: bool = False) -> dict:
     """Fit the launch that best reproduces a measured track.
 
     Parameters
@@ -499,6 +530,11 @@ def fit_track(track, ball: Ball | None = None, *, probe_m: float | None = None, 
         them are carried on to the whole track).
     label_T : float
         Duration (s) of the run that labels the fitted launch (the track's if longer).
+    slowing : bool
+        Fit a ball that slows: the model has the rolling resistance (`simulate`'s
+        rolling_resistance), its coefficient fitted with the launch (from SLOWING_START, within
+        0 to 1). The survey is of the rolling model without it; the refinement integrates each
+        launch in the fixed frame by dopri5 (rtol 1e-10), slower than the plain fit.
 
     Returns
     -------
@@ -506,7 +542,8 @@ def fit_track(track, ball: Ball | None = None, *, probe_m: float | None = None, 
         theta0_deg (deg), thetadot0, chidot0, phidot0 (rad/s), chi0_deg (deg), x0, y0 (m) at the
         first sample, each with ``_err`` (one standard deviation from the Jacobian); rms_m, the
         root-mean-square position residual per coordinate (m); label, the label of the fitted
-        launch; and t_start (s), n_samples, cost, survey_launches, seconds.
+        launch; and t_start (s), n_samples, cost, survey_launches, seconds. With slowing, also
+        rolling_resistance and rolling_resistance_err (dimensionless).
     """
     import time
 
@@ -529,17 +566,19 @@ def fit_track(track, ball: Ball | None = None, *, probe_m: float | None = None, 
                                 "Euler chart over the track; widen the box")
     T_full = float(track.t[-1])
     picked = [starts[:, j] for j in range(min(n_starts, costs.size)) if np.isfinite(costs[j])]
+    if slowing:
+        picked = [np.append(q, SLOWING_START) for q in picked]
     # the starts refined a little over a short window, where a launch a grid step away still
     # keeps the track's phase; the best few taken on over windows doubled to the whole track
     T = min(START_T, T_full)
-    model = _Model(track, ball, T)
+    model = _Model(track, ball, T, slowing)
     fits = sorted((_refine(model, q, ball, 12) for q in picked), key=lambda r: r.cost)
     best = None
     for r in fits[:N_CARRIED]:
         T, x = min(START_T, T_full), r.x
         while T < T_full:
             T = min(2 * T, T_full)
-            model = _Model(track, ball, T)
+            model = _Model(track, ball, T, slowing)
             r = _refine(model, x, ball, 60 if T == T_full else 25)
             x = r.x
         if best is None or r.cost < best.cost:
@@ -552,17 +591,18 @@ def fit_track(track, ball: Ball | None = None, *, probe_m: float | None = None, 
     s2 = 2.0 * best.cost / dof
     cov = np.linalg.pinv(J.T @ J) * s2
     err = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    placed = _place(model.cache[q.tobytes()], *q[4:]) if q.tobytes() in model.cache else None
+    placed = _place(model.cache[q.tobytes()], *q[4:7]) if q.tobytes() in model.cache else None
     if placed is None:
         model.fun(q)
-        placed = _place(model.cache[q.tobytes()], *q[4:])
+        placed = _place(model.cache[q.tobytes()], *q[4:7])
     pos = [k for k in model.names if k not in ("theta_deg", "chidot")]
     rms = float(np.sqrt(np.mean(np.concatenate([(placed[k] - model.data[k]) ** 2
                                                 for k in pos]))))
     lab = simulate(q[0], q[1], q[2], q[3], T=max(label_T, T_full), chi0_deg=q[4], x0=q[5],
-                   y0=q[6], ball=ball, n_out=2001).attrs["label"]
+                   y0=q[6], ball=ball, n_out=2001,
+                   rolling_resistance=q[7] if slowing else 0.0).attrs["label"]
     out = {}
-    for k, v, e in zip(PARAMS, q, err):
+    for k, v, e in zip(PARAMS + (SLOWING,) * slowing, q, err):
         out[k], out[k + "_err"] = float(v), float(e)
     # the heading is an angle: reported in (-180, 180] deg (the fit may wander a few turns)
     out["chi0_deg"] = float(-((-out["chi0_deg"] + 180.0) % 360.0 - 180.0)) + 0.0
@@ -576,10 +616,11 @@ def fitted_track(fit: dict, track: Track, ball: Ball | None = None) -> dict:
     """The fitted launch's channels at the track's times (positions in m, theta in deg,
     chidot in rad/s), for plots and checks."""
     ball = ball or Ball.paper()
-    q = np.array([fit[k] for k in PARAMS])
-    model = _Model(track, ball, float(track.t[-1]))
+    slowing = SLOWING in fit
+    q = np.array([fit[k] for k in PARAMS + (SLOWING,) * slowing])
+    model = _Model(track, ball, float(track.t[-1]), slowing)
     model.fun(q)
-    return _place(model.cache[q.tobytes()], *q[4:])
+    return _place(model.cache[q.tobytes()], *q[4:7])
 
 
 def plot_fit(track: Track, fit: dict, out=None, ball: Ball | None = None):
