@@ -6,8 +6,10 @@ coefficient 0 gives the numbers stored from the code before the model existed, b
 
 tests/data/golden_simulate.npz: every variable of `simulate` for three launches (the paper's
 square by RK4 and by dopri5, and a near-vertical launch that takes the fixed-frame fallback),
-written before the rolling resistance was added; tests/data/golden_fixed_rhs.npz: the
-fixed-frame right-hand side on 200 random states (p = 0.3, 0.4, 0.45), from the same code.
+written before the rolling resistance was added (commit 333b3ed); tests/data/golden_fixed_rhs.npz:
+the fixed-frame right-hand side on 200 random states (p = 0.3, 0.4, 0.45), from the same code.
+Regenerate the first (only when a result is meant to change, and say why in the commit):
+    python tests/test_rolling_resistance.py
 """
 from __future__ import annotations
 
@@ -232,3 +234,12 @@ def test_fit_slowing_recovers_a_ball_that_slows(tmp_path, capsys):
     for k, v in truth.items():
         assert abs(fit[k] - v) < 3 * fit[f"{k}_err"], (k, fit[k], fit[f"{k}_err"])
     assert fit["rolling_resistance_err"] < 0.1 * mu  # the coefficient is measured, not guessed
+
+
+if __name__ == "__main__":  # regenerate the stored simulate arrays
+    stored = {}
+    for case, kw in GOLDEN_CASES.items():
+        ds = simulate(**kw, n_out=101)
+        stored.update({f"{case}/{k}": v.values for k, v in ds.data_vars.items()})
+        stored[f"{case}/time"] = ds.time.values
+    np.savez_compressed(DATA / "golden_simulate.npz", **stored)
