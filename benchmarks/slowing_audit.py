@@ -6,8 +6,8 @@ with the rolling-resistance couple written apart from the engine (`ballsurvey.sy
 noise a coordinate, each launch with the coefficient that takes about `--loss` of its speed a
 second: (E(0) - E(T)) / (2 T K) = loss, E the energy, K the mean kinetic energy over the track
 (K goes as the speed squared; the speed itself swings through each theta cycle). Each regime's
-launch is jittered at random (theta0 +-2 deg, chidot0 and phidot0 +-4 %, any heading, x0, y0
-within 5 cm) for each track.
+launch is jittered at random as benchmarks/fit_recovery.py does (theta0 +-2 deg, thetadot0
++-0.3 rad/s, chidot0 and phidot0 +-4 %, any heading, x0, y0 within 5 cm) for each track.
 
 Printed: a row per track (the rms residual over the noise, each parameter's z = (estimate -
 truth) / sigma), then the share of all the estimates within 2 and 3 of their stated standard
@@ -22,6 +22,7 @@ import argparse
 import time
 
 import numpy as np
+from fit_recovery import jitter  # benchmarks/fit_recovery.py, beside this script
 
 from ballsurvey.ball import Ball
 from ballsurvey.fit import PARAMS, SLOWING, fit_track, make_track
@@ -36,16 +37,6 @@ REGIMES = {
 FPS, T, NOISE_M = 30.0, 3.0, 2e-4
 #: a first guess of the coefficient, rescaled to the loss asked for from its own track
 MU_GUESS = 5e-4
-
-
-def jitter(base: dict, rng) -> dict:
-    kw = dict(base)
-    kw["theta0_deg"] = base["theta0_deg"] + rng.uniform(-2, 2)
-    kw["chidot0"] = base["chidot0"] * (1 + rng.uniform(-0.04, 0.04))
-    kw["phidot0"] = base["phidot0"] * (1 + rng.uniform(-0.04, 0.04))
-    kw["chi0_deg"] = rng.uniform(-180, 180)
-    kw["x0"], kw["y0"] = rng.uniform(-0.05, 0.05, 2)
-    return kw
 
 
 def speed_loss(kw: dict, mu: float) -> float:

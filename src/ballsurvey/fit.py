@@ -42,11 +42,11 @@ from .units import StepPlan, launch_state
 #: the launch the fit returns, in order, with units
 PARAMS = ("theta0_deg", "thetadot0", "chidot0", "phidot0", "chi0_deg", "x0", "y0")
 UNITS = {"theta0_deg": "deg", "thetadot0": "rad/s", "chidot0": "rad/s", "phidot0": "rad/s",
-         "chi0_deg": "deg", "x0": "m", "y0": "m", "rolling_resistance": "1"}
+         "chi0_deg": "deg", "x0": "m", "y0": "m", "rolling_resistance": "(dimensionless)"}
 #: the extra parameter a fit of a slowing ball (`fit_track(slowing=True)`) returns after PARAMS:
 #: the rolling-resistance coefficient mu_r (dimensionless, `simulate`'s rolling_resistance)
 SLOWING = "rolling_resistance"
-#: where the slowing fit's coefficient starts (a rolling ball on a table: 0.001 to 0.02)
+#: where the slowing fit's coefficient starts (the order of a ball on a table, docs/physics.md)
 SLOWING_START = 1e-3
 #: nominal measurement errors that weight the residual channels
 POSITION_SIGMA_M = 1e-4
