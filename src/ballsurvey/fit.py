@@ -56,7 +56,7 @@ NEAR_VERTICAL = (87.0, 88.0, 89.5, 89.9)
 GRID = {"theta0_deg": 31, "thetadot0": 9, "chidot0": 61}
 #: the survey's window (s), step (s) and sample spacing (s)
 SURVEY_T = 1.5
-SURVEY_DT = 1e-3
+SURVEY_DT = 2e-3
 SURVEY_EVERY = 0.01
 #: share of the survey window a launch must stay on the Euler chart to be judged
 SURVEY_VALID = 1.0
@@ -105,9 +105,10 @@ NOISE_SPREAD = 1.55
 #: runs or lag-1 autocorrelation are STRUCTURE_Z from white noise
 MISFIT_Z = 3.0
 STRUCTURE_Z = 4.0
-#: failed: the rms is FAIL_RATIO times the noise, or thetadot0, chidot0 beyond the survey's
-#: box by BOX_MARGIN of its half-width
-FAIL_RATIO = 5.0
+#: failed: the rms is FAIL_RATIO times the noise or FAIL_FRACTION of the track's extent, or
+#: thetadot0, chidot0 beyond the survey's box by BOX_MARGIN of its half-width
+FAIL_RATIO = 20.0
+FAIL_FRACTION = 0.05
 BOX_MARGIN = 0.5
 #: the plot's model drawn every PLOT_DT seconds (or finer)
 PLOT_DT = 0.01
@@ -855,8 +856,9 @@ def _model_problems(ds, T_track: float, ball: Ball) -> list[str]:
         out.append(f"the ball lifts off (normal force {np.nanmin(n):.3g} N)")
     mu = Thresholds().mu
     fr = ds.friction_ratio.values[on]
-    if np.nanmax(fr) > mu:
-        out.append(f"it would slip (friction |F_h|/N up to {np.nanmax(fr):.2f}, above mu = "
+    fr = fr[np.isfinite(fr)]  # infinite where the ball has lifted off: said above
+    if fr.size and fr.max() > mu:
+        out.append(f"it would slip (friction |F_h|/N up to {fr.max():.2f}, above mu = "
                    f"{mu:g})")
     return out
 
@@ -980,9 +982,11 @@ def fit_track(track, ball: Ball | None = None, *, probe_m: float | None = None, 
     ds = _label_run(np.r_[q[:5], 0.0, 0.0], ball, max(label_T, T_full))
     lab = ds.attrs["label"]
     reasons = []
-    if ratio > FAIL_RATIO and rms > RESOLUTION_M:
+    extent = max(np.ptp(model.data[k]) for k in pos)
+    if rms > RESOLUTION_M and (ratio > FAIL_RATIO or rms > FAIL_FRACTION * extent):
         reasons.append(f"the best launch misses the track: rms {rms * 1e3:.3g} mm, "
-                       f"{ratio:.1f} times the noise ({noise * 1e3:.2g} mm)")
+                       f"{ratio:.1f} times the noise ({noise * 1e3:.2g} mm), "
+                       f"{100 * rms / extent:.2g} % of the track's extent")
     reasons += _model_problems(ds, T_full, ball)
     box_ = {**BOX, **(box or {})}
     for k, i in (("thetadot0", 1), ("chidot0", 2)):
