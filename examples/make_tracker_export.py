@@ -15,8 +15,6 @@ each position, and frames 17, 18 and 52 lost.
 """
 from pathlib import Path
 
-import numpy as np
-
 from ballsurvey.synthetic import synthetic_track
 
 LAUNCH = dict(theta0_deg=-10.0, thetadot0=0.0, chidot0=2.3, phidot0=-2.5, chi0_deg=30.0,

@@ -661,14 +661,16 @@ def _cmd_fit(args):
                   f"{a['rms_m']:.3g} m, {a['label']}")
         if "evidence" in fit:
             ev = fit["evidence"]
-            print(f"  mismatch: rms/noise {ev['rms_over_noise']:.2f} (z {ev['rms_over_noise_z']:.1f}), "
+            print(f"  mismatch: rms/noise {ev['rms_over_noise']:.2f} "
+                  f"(z {ev['rms_over_noise_z']:.1f}), "
                   f"runs z {ev['runs_z']:.1f}, lag-1 autocorrelation {ev['autocorrelation']:.2f}")
         for note in fit["notes"]:
             print(f"  note: {note}")
         if fit["n_dropped"]:
             ts = ", ".join(f"{t:g}" for t in fit["dropped_t"][:10])
             more = " ..." if len(fit["dropped_t"]) > 10 else ""
-            print(f"dropped     {fit['n_dropped']} rows with a blank or NaN cell (t = {ts}{more} s)")
+            print(f"dropped     {fit['n_dropped']} rows with a blank or NaN cell "
+                  f"(t = {ts}{more} s)")
         print(f"({fit['n_samples']} samples, {fit['survey_launches']} launches surveyed, "
               f"{fit['seconds']:.1f} s)", flush=True)
     if out is not None:

@@ -1008,7 +1008,8 @@ def fit_track(track, ball: Ball | None = None, *, probe_m: float | None = None, 
         err = err * widen
         cov = cov * widen**2
         notes.append(f"the model does not explain the track (rms {ratio:.2f} times the noise; "
-                     f"runs z {tests['runs_z']:.1f}, autocorrelation {tests['autocorrelation']:.2f}): "
+                     f"runs z {tests['runs_z']:.1f}, autocorrelation "
+                     f"{tests['autocorrelation']:.2f}): "
                      f"the standard deviations are widened by the residuals' correlation (x "
                      f"{widen:.2f}) and are a lower bound")
     elif alternatives:
