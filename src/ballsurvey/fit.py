@@ -451,7 +451,8 @@ def _model_local(traj: np.ndarray, ball: Ball, probe_m: float | None) -> dict:
     if probe_m is None:
         out["x"], out["y"] = gx, gy
     else:
-        pts = body_points(gx, gy, traj[:, S_TH], traj[:, S_CHI], ball, probe_m)
+        with np.errstate(invalid="ignore"):  # a launch that blew up: NaN, judged as such
+            pts = body_points(gx, gy, traj[:, S_TH], traj[:, S_CHI], ball, probe_m)
         for k in ("x_tip", "y_tip", "x_base", "y_base"):
             out[k] = pts[k]
     return out
