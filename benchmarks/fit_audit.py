@@ -56,7 +56,11 @@ def judge(fit, truth):
         near = [a for a in fit["alternatives"]
                 if all(abs(a[k] - truth[k]) <= 3 * fit[k + "_err"] for k in PARAMS[:4])]
         among = worst <= 3 or bool(near)
-        return "flagged", worst, "truth among them" if among else "truth NOT among them"
+        curve = [n for n in fit["notes"] if n.startswith("the track does not fix")]
+        return "flagged", worst, ("truth among them" if among else "truth NOT among them") + (
+            f" ({len(fit['alternatives'])} alternatives; " + curve[0].split(":")[1].split(
+                " span")[0].strip() + ")" if curve else f" ({len(fit['alternatives'])} "
+                                                          "alternatives)")
     return "flagged", worst, "; ".join(fit.get("reasons", [])[:1])
 
 
@@ -74,6 +78,10 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--quick", action="store_true", help="30 frames/s and 0.2 mm only")
+    ap.add_argument("--only", help="tracks whose name holds this text (the others skipped, "
+                                   "their random draws kept)")
+    ap.add_argument("--fps", type=int, help="with --only: this frame rate only")
+    ap.add_argument("--noise-mm", type=float, help="with --only: this noise only")
     args = ap.parse_args()
     rng = np.random.default_rng(args.seed)
     rows, t_all = [], time.perf_counter()
@@ -91,6 +99,9 @@ def main():
         if base is not None:
             truth = dict(base, chi0_deg=float(rng.uniform(-180, 180)),
                          x0=float(rng.uniform(-0.1, 0.1)), y0=float(rng.uniform(-0.1, 0.1)))
+        if args.only and (args.only not in name or (args.fps and fps != args.fps)
+                          or (args.noise_mm and abs(noise * 1e3 - args.noise_mm) > 1e-9)):
+            continue
         t0 = time.perf_counter()
         if name.startswith("slowing"):
             tr = slowing_track(truth, fps, noise, rng, seed)
@@ -120,6 +131,10 @@ def main():
         else:
             verdict, worst, note = judge(fit, truth)
         rows.append(verdict)
+        if verdict == "CONFIDENT WRONG" and truth is not None:
+            print("  " + ", ".join(f"{k} {fit[k]:.4g} +- {fit[k + '_err']:.2g} (true "
+                                   f"{truth[k]:.4g})" for k in PARAMS)
+                  + f"; rms/noise {fit['rms_over_noise']:.2f}", flush=True)
         print(f"| {name} | {fps} | {noise * 1e3:g} | {fit['status']} | {worst:.2f} | {verdict} "
               f"| {note} | {secs:.1f} |", flush=True)
     n = len(rows)

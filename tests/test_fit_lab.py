@@ -243,3 +243,17 @@ def test_the_plot_draws_the_model_dense_the_dropped_frames_and_the_alternatives(
     assert lines["fit: centre of mass"].get_xdata().size > 3 * track.t.size
     assert lines["dropped frames (model)"].get_xdata().size == 2
     assert "also fits: centre of mass" in lines
+
+
+def test_a_sigma_wider_than_a_tenth_of_the_box_says_the_track_does_not_fix_the_launch():
+    from ballsurvey.fit import BOX, _undetermined
+
+    tight = np.array([0.05, 0.02, 0.01, 0.01, 0.2, 1e-4, 1e-4])
+    assert _undetermined(tight, None) == {}
+    # the near-straight fit at 30 frames/s that missed the launch by 17 sigma in chidot0
+    loose = np.array([20.0, 5.3, 2.9, 9.9, 100.0, 3e-4, 3e-4])
+    assert set(_undetermined(loose, None)) == {"theta0_deg", "thetadot0", "phidot0", "chi0_deg"}
+    span = BOX["chidot0"][1] - BOX["chidot0"][0]
+    edge = tight.copy()
+    edge[2] = 0.1 * span * 1.01
+    assert set(_undetermined(edge, None)) == {"chidot0"}

@@ -105,11 +105,17 @@ NOISE_SPREAD = 1.55
 #: runs or lag-1 autocorrelation are STRUCTURE_Z from white noise
 MISFIT_Z = 3.0
 STRUCTURE_Z = 4.0
-#: failed: the rms is FAIL_RATIO times the noise or FAIL_FRACTION of the track's extent, or
+#: failed: the rms is FAIL_RATIO times the noise, or above it (MISFIT_Z) by FAIL_FRACTION of the
+#: track's extent, or
 #: thetadot0, chidot0 beyond the survey's box by BOX_MARGIN of its half-width
 FAIL_RATIO = 20.0
 FAIL_FRACTION = 0.05
 BOX_MARGIN = 0.5
+#: a standard deviation wider than WIDE_SHARE of the survey box's span (theta0, thetadot0,
+#: chidot0), WIDE_PHIDOT (rad/s) or WIDE_CHI_DEG (deg): the track does not fix the launch
+WIDE_SHARE = 0.1
+WIDE_PHIDOT = 3.0
+WIDE_CHI_DEG = 30.0
 #: the plot's model drawn every PLOT_DT seconds (or finer)
 PLOT_DT = 0.01
 #: a Jacobian condition number above it: the track does not separate the parameters
@@ -834,6 +840,18 @@ def _carry(model_short: _Model, track: Track, ball: Ball, r, T_full: float):
     return r, model
 
 
+def _undetermined(err, box) -> dict:
+    """The parameters whose standard deviation spans more than WIDE_SHARE of the survey's box
+    (theta0, thetadot0, chidot0), more than WIDE_PHIDOT rad/s (phidot0) or WIDE_CHI_DEG (chi0):
+    over such a span the motion changes, so a linear uncertainty cannot describe it and other
+    launches fit as well. Returns {name: sigma}."""
+    box = {**BOX, **(box or {})}
+    wide = {k: WIDE_SHARE * (box[k][1] - box[k][0]) for k in box}
+    wide.update(phidot0=WIDE_PHIDOT, chi0_deg=WIDE_CHI_DEG)
+    return {k: float(err[PARAMS.index(k)]) for k in PARAMS if k in wide
+            and err[PARAMS.index(k)] > wide[k]}
+
+
 def _label_run(q, ball: Ball, T: float):
     return simulate(q[0], q[1], q[2], q[3], T=T, chi0_deg=q[4], x0=q[5], y0=q[6], ball=ball,
                     n_out=2001)
@@ -969,6 +987,13 @@ def fit_track(track, ball: Ball | None = None, *, probe_m: float | None = None, 
         rms_a = float(np.sqrt(np.mean(np.concatenate([pl[k] - mod.data[k] for k in pos]) ** 2)))
         alternatives.append({"q": r.x, "rms_m": rms_a, "delta_chi2": float(d_chi2)})
 
+    # --- does the track fix the launch at all? ----------------------------------------------
+    curved = _undetermined(err, box)
+    if curved:
+        notes.append("the track does not fix the launch: " + ", ".join(
+            f"{k} +- {v:.3g}" for k, v in curved.items()) + " span motions of other kinds, so "
+            "the standard deviations are not meaningful and other launches fit as well")
+
     # --- does the model explain the track? ---------------------------------------------------
     noise, n_diff = noise_estimate(rel)
     noise_eff = math.hypot(noise, RESOLUTION_M)
@@ -979,12 +1004,12 @@ def fit_track(track, ball: Ball | None = None, *, probe_m: float | None = None, 
     evidence = {"rms_over_noise": ratio, "rms_over_noise_z": (ratio - 1.0) / sd_ratio, **tests}
     structured = rms > RESOLUTION_M and (tests["runs_z"] < -STRUCTURE_Z
                                          or tests["autocorrelation_z"] > STRUCTURE_Z)
-    misfit = evidence["rms_over_noise_z"] > MISFIT_Z
     ds = _label_run(np.r_[q[:5], 0.0, 0.0], ball, max(label_T, T_full))
     lab = ds.attrs["label"]
     reasons = []
     extent = max(np.ptp(model.data[k]) for k in pos)
-    if rms > RESOLUTION_M and (ratio > FAIL_RATIO or rms > FAIL_FRACTION * extent):
+    misfit = evidence["rms_over_noise_z"] > MISFIT_Z
+    if rms > RESOLUTION_M and (ratio > FAIL_RATIO or (misfit and rms > FAIL_FRACTION * extent)):
         reasons.append(f"the best launch misses the track: rms {rms * 1e3:.3g} mm, "
                        f"{ratio:.1f} times the noise ({noise * 1e3:.2g} mm), "
                        f"{100 * rms / extent:.2g} % of the track's extent")
@@ -1013,7 +1038,7 @@ def fit_track(track, ball: Ball | None = None, *, probe_m: float | None = None, 
                      f"{tests['autocorrelation']:.2f}): "
                      f"the standard deviations are widened by the residuals' correlation (x "
                      f"{widen:.2f}) and are a lower bound")
-    elif alternatives:
+    elif alternatives or curved:
         status = "ambiguous"
     else:
         status = "ok"
@@ -1027,7 +1052,7 @@ def fit_track(track, ball: Ball | None = None, *, probe_m: float | None = None, 
     # the heading is an angle: reported in (-180, 180] deg (the fit may wander a few turns)
     out["chi0_deg"] = _wrap_deg(out["chi0_deg"])
     out.update(rms_m=rms, label=lab, status=status)
-    if alternatives:
+    if alternatives or status == "ambiguous":
         alts = []
         for a in alternatives:
             qa = a["q"]
