@@ -988,11 +988,11 @@ def fit_track(track, ball: Ball | None = None, *, probe_m: float | None = None, 
         alternatives.append({"q": r.x, "rms_m": rms_a, "delta_chi2": float(d_chi2)})
 
     # --- does the track fix the launch at all? ----------------------------------------------
-    curved = _undetermined(err, box)
-    if curved:
+    undetermined = _undetermined(err, box)
+    if undetermined:
         notes.append("the track does not fix the launch: " + ", ".join(
-            f"{k} +- {v:.3g}" for k, v in curved.items()) + " span motions of other kinds, so "
-            "the standard deviations are not meaningful and other launches fit as well")
+            f"{k} +- {v:.3g}" for k, v in undetermined.items()) + " span motions of other "
+            "kinds, so the standard deviations are not meaningful and other launches fit as well")
 
     # --- does the model explain the track? ---------------------------------------------------
     noise, n_diff = noise_estimate(rel)
@@ -1038,7 +1038,7 @@ def fit_track(track, ball: Ball | None = None, *, probe_m: float | None = None, 
                      f"{tests['autocorrelation']:.2f}): "
                      f"the standard deviations are widened by the residuals' correlation (x "
                      f"{widen:.2f}) and are a lower bound")
-    elif alternatives or curved:
+    elif alternatives or undetermined:
         status = "ambiguous"
     else:
         status = "ok"
