@@ -27,7 +27,9 @@ def test_fit_cli_json_recovers_a_circle_launch_from_a_noisy_fixed_frame_track(tm
     path = _write(tmp_path / "track.csv", {k: tr[k] for k in ("t", "x", "y")})
     assert main(["fit", path, "--format", "json"]) == 0
     fit = json.loads(capsys.readouterr().out)
-    assert list(fit) == [k for p in PARAMS for k in (p, p + "_err")] + ["rms_m", "label"]
+    # the keys a script reads come first, in order; status says how far to trust them
+    assert list(fit)[:16] == [k for p in PARAMS for k in (p, p + "_err")] + ["rms_m", "label"]
+    assert fit["status"] == "ok", fit
     # the residual is the noise put in (0.2 mm a coordinate), not a wrong basin
     assert 1.8e-4 < fit["rms_m"] < 2.2e-4
     # within 4 of its own standard deviations, and those are small
@@ -59,11 +61,11 @@ def _good(n=300, fps=300.0):
 
 @pytest.mark.parametrize("change, words", [
     (lambda d: {k: v[:10] for k, v in d.items()}, "too short"),
-    (lambda d: {**d, "x": np.where(np.arange(d["t"].size) == 7, np.nan, d["x"])},
-     "non-finite value at sample 8"),
+    (lambda d: {k: np.where(np.arange(d["t"].size) < 285, np.nan, v) if k == "x" else v
+                for k, v in d.items()}, "285 rows with a blank or NaN cell dropped"),
     (lambda d: {**d, "t": d["t"][[0, 1, 2, 4, 3] + list(range(5, d["t"].size))]},
      "t must increase"),
-    (lambda d: {**d, "x": d["x"] * 1000, "y": d["y"] * 1000}, "are they in mm?"),
+    (lambda d: {**d, "x": d["x"] * 1000, "y": d["y"] * 1000}, "are they in mm or cm?"),
     (lambda d: {**d, "t": d["t"] * 1000}, "is t in ms?"),
     (lambda d: {"t": d["t"], "x": d["x"]}, "give both x and y"),
     (lambda d: {**d, "theta_deg": np.full(d["t"].size, 120.0)}, "theta_deg must stay within"),
@@ -79,10 +81,15 @@ def test_bad_tracks_are_one_line_exit_2_before_any_work(tmp_path, capsys, change
 
 def test_a_missing_file_and_a_file_without_t_are_one_line(tmp_path, capsys):
     assert main(["fit", str(tmp_path / "none.csv")]) == 2
-    (tmp_path / "no_t.csv").write_text("time,x,y\n0,0,0\n")
+    (tmp_path / "no_t.csv").write_text("frame,x,y\n0,0,0\n")
     assert main(["fit", str(tmp_path / "no_t.csv")]) == 2
+    # a tab-separated header is quoted cell by cell, so a tab never reads as a found 't'
+    (tmp_path / "tabs.txt").write_text("mass A\nframe\tx\ty\n0\t0\t0\n")
+    assert main(["fit", str(tmp_path / "tabs.txt")]) == 2
     err = capsys.readouterr().err.splitlines()
-    assert len(err) == 2 and "no such file" in err[0] and "column t" in err[1]
+    assert len(err) == 3 and "no such file" in err[0]
+    assert "column t" in err[1] and "found columns 'frame', 'x', 'y'" in err[1]
+    assert "found columns 'frame', 'x', 'y'" in err[2]
 
 
 def test_the_shipped_example_track_is_reproducible_and_fits_back_to_its_launch(tmp_path):
