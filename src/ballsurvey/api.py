@@ -247,6 +247,13 @@ def open_map(path, load: bool | None = None) -> xr.Dataset:
             ds.close()
             raise InputError(f"{path} lacks the launch conditions {', '.join(missing)}: not a "
                              "ballsurvey map")
+        from .sweep.spec import check_map
+
+        try:  # a spec's rules: a crafted or damaged map is refused before any work
+            check_map(ds, str(path))
+        except InputError:
+            ds.close()
+            raise
         if load is None:
             load = p.stat().st_size < 256 * 2**20
         if load:

@@ -23,7 +23,7 @@ import io
 import json
 import math
 import time
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -34,10 +34,10 @@ from .ball import Ball
 from .classify.labels import CORNER_KINDS, LABELS, Thresholds
 from .classify.observer import theta_maxima
 from .compose import METHODS
-from .gallery import BALL_KEYS, LAUNCH_KEYS, map_ball
+from .gallery import BALL_KEYS, LAUNCH_KEYS
 from .integrate.outcome import FORMULATIONS
 from .integrate.tableaus import FIXED_STEP
-from .limits import InputError, RunError, step_count
+from .limits import InputError, RunError, replay_steps, step_count
 from .plot import (
     EXACT_POLYGON_DASH,
     EXACT_POLYGON_LEVELS,
@@ -115,23 +115,28 @@ class RunSettings:
 
 
 def run_settings(ds: xr.Dataset) -> RunSettings:
-    """The map's method, step, duration, tolerances, classifier thresholds and ball."""
-    a = ds.attrs
-    method, note = str(a.get("run_method", "rk4")), ""
-    if "run_method" not in a or "run_dt_s" not in a:
+    """The map's method, step, duration, tolerances, classifier thresholds and ball, checked by a
+    spec's rules (`sweep.spec.map_settings`) and by the steps a click may take
+    (`limits.replay_steps`): InputError, one line, before any work."""
+    from .sweep.spec import map_settings
+
+    src = str(ds.encoding.get("source", "map"))
+    m = map_settings(ds.attrs, src)
+    method, note = m.method, ""
+    if not m.recorded:
         note = ("the map records no method or step: this launch is integrated with "
-                f"{method}, step {float(a.get('run_dt_s', 1e-4)):g} s")
+                f"{method}, step {m.dt:g} s")
     if method not in METHODS:  # an adaptive pair on SIMD lanes: one launch takes dopri5
         note = (f"the map's {method} integrates ensembles only: this launch is integrated with "
                 f"dopri5 at the map's rtol and atol")
         method = "dopri5"
-    default = Thresholds()
-    kw = {f.name: type(getattr(default, f.name))(a[f"classify_{f.name}"])
-          for f in fields(Thresholds) if f"classify_{f.name}" in a}
-    return RunSettings(T=float(a.get("run_T_s", 20.0)), dt=float(a.get("run_dt_s", 1e-4)),
-                       method=method, rtol=float(a.get("run_rtol", 1e-9)),
-                       atol=float(a.get("run_atol", 1e-12)), thresholds=Thresholds(**kw),
-                       ball=map_ball(ds), note=note)
+    try:
+        replay_steps(m.T, m.dt, method in FIXED_STEP, "attribute run_dt_s",
+                     "explore integrates launches again")
+    except InputError as exc:
+        raise InputError(f"{src}: {exc}") from None
+    return RunSettings(T=m.T, dt=m.dt, method=method, rtol=m.rtol, atol=m.atol,
+                       thresholds=m.thresholds, ball=m.ball, note=note)
 
 
 def path_samples(T: float, dt: float, method: str, target: int = PATH_SAMPLES) -> int:

@@ -14,6 +14,9 @@ import math
 MAX_LAUNCHES = 10**10
 #: most integration steps of one launch (T / dt)
 MAX_STEPS = 10**10
+#: most integration steps of one launch that a command integrates again from a map (explore's
+#: click and static page, gallery): some seconds of one core (about 1.5e6 steps/s with rk4)
+MAX_REPLAY_STEPS = 10**7
 #: longest duration of one launch (s): about 12 days of rolling; far beyond it the kernels'
 #: scaled time overflows (an adaptive method takes no step count to refuse it by)
 MAX_DURATION_S = 1e6
@@ -132,6 +135,17 @@ def steps(T: float, dt: float, name_T: str = "T", name_dt: str = "dt") -> int:
         raise InputError(f"{name_dt}: T/dt = {n:.3g} steps per launch is more than "
                          f"{MAX_STEPS:.0e}; use a larger step or a shorter T")
     return step_count(T, dt)
+
+
+def replay_steps(T: float, dt: float, fixed_step: bool, name_dt: str = "dt",
+                 what: str = "a command integrates launches again") -> int:
+    """Steps of a launch a command integrates again from a map (T, dt as checked by `steps`):
+    refused above MAX_REPLAY_STEPS for a fixed-step method (an adaptive one chooses its own)."""
+    n = step_count(T, dt)
+    if fixed_step and n > MAX_REPLAY_STEPS:
+        raise InputError(f"{name_dt}: T/dt = {n:.3g} steps a launch; {what}, each with at "
+                         f"most {MAX_REPLAY_STEPS:.0e} steps (some seconds of one core)")
+    return n
 
 
 def tolerances(rtol, atol, name_rtol: str = "rtol", name_atol: str = "atol") -> tuple:
