@@ -2,9 +2,11 @@
 when a spec could not hold it; text from it never runs as script in a page (test_explore's
 browser tests hold the pages); the explorer answers only its own host. docs/reliability.md,
 "Security", lists each promise with its test."""
+import html
 import shutil
 import subprocess
 import sys
+import time
 
 import netCDF4
 import numpy as np
@@ -117,3 +119,162 @@ def test_label_codes_must_be_ballsurveys(base, tmp_path):
         nc["label"].flag_meanings = " ".join([words[1], words[0]] + words[2:])  # swapped
     with pytest.raises(api.InputError, match="not ballsurvey's label codes"):
         api.open_map(bad)
+
+
+# ---------------------------------------------------------------------------------------------
+# text from outside in the pages, in a real headless Chromium
+#: each sets window.__pwned (and the page's title) if it ever runs
+PAYLOADS = [
+    '<img src=x onerror="window.__pwned=1;document.title=\'pwned\'">',
+    '<svg onload="window.__pwned=2">',
+    '"><img src=x onerror=window.__pwned=3>',
+    "'><img src=x onerror=window.__pwned=4>",
+    "javascript:window.__pwned=5",
+    "</script><script>window.__pwned=6</script>",
+    "${window.__pwned=7}`<img src=x onerror=window.__pwned=7>",
+]
+#: a map file's name and title that would run script where inserted as HTML
+FILE_NAME = "<img src=x onerror=window.__pwned=8>.nc"
+TITLE = "<svg onload=window.__pwned=9>"
+
+
+def payload_spec() -> str:
+    import json
+
+    pts = "".join(f"[[points]]\nname = {json.dumps(n)}\ntheta0_deg = {2.0 + 2 * i}\n"
+                  f"thetadot0 = 0.0\nchidot0 = {4.0 + 0.5 * i}\nphidot0 = -3.0\n"
+                  for i, n in enumerate(PAYLOADS))
+    return f"title = {json.dumps(TITLE)}\n{pts}[run]\nT = 3.0\ndt = 2e-4\n"
+
+
+@pytest.fixture(scope="module")
+def payload_map(tmp_path_factory):
+    d = tmp_path_factory.mktemp("payload")
+    api.sweep(payload_spec(), output=d / FILE_NAME, progress=False, notice=lambda m: None)
+    return d / FILE_NAME
+
+
+def test_text_from_outside_is_escaped_in_the_launch_panel(payload_map):
+    pytest.importorskip("bokeh")
+    from ballsurvey import explore
+
+    with explore.open_lazily(payload_map) as ds:
+        for i, name in enumerate(PAYLOADS):
+            text = explore.launch_html(explore.launch_at(ds, i), note=name, timing=name)
+            assert "<img" not in text and "<svg" not in text and "<script" not in text
+            assert text.count(explore._h(name)) == 3  # the name, the note, the timing
+    assert html.unescape(explore._h(PAYLOADS[2])) == PAYLOADS[2]
+
+
+#: (value of window.__pwned, document.title, elements with an on* attribute or a javascript: URL,
+#: text of the launch panel) of the page, shadow roots included
+_PROBE = """const bad = [];
+const walk = (root) => { for (const el of root.querySelectorAll('*')) {
+  for (const a of el.attributes) {
+    if (/^on/i.test(a.name) || /^\\s*javascript:/i.test(a.value)) {
+      bad.push(el.outerHTML.slice(0, 80)); } }
+  if (el.shadowRoot) { walk(el.shadowRoot); } } };
+walk(document);
+const v = Bokeh.index.find_one(Bokeh.documents[0].get_model_by_name('launch'));
+const root = v.el.shadowRoot || v.el;
+return [window.__pwned === undefined ? null : window.__pwned, document.title, bad,
+        root.textContent];"""
+_SELECT = """const src = Bokeh.documents[0].get_model_by_name('points');
+src.selected.indices = [arguments[0]];"""
+
+
+def _browser_bits():
+    import test_explore as te
+
+    return te
+
+
+def _visit_every_point(d, te):
+    """Hover over and select each point of the page's points map; returns the probe after each."""
+    from selenium.webdriver.common.actions.action_builder import ActionBuilder
+
+    seen = []
+    for i in range(len(PAYLOADS)):
+        x, y = 2.0 + 2 * i, 4.0 + 0.5 * i
+        sx, sy = d.execute_script(te._WHERE, "map", x, y)
+        a = ActionBuilder(d)
+        a.pointer_action.move_to_location(int(round(sx)), int(round(sy)))
+        a.perform()  # the hover tooltip, with the point's name
+        time.sleep(0.2)
+        d.execute_script(_SELECT, i)
+        te._wait(lambda i=i: PAYLOADS[i] in d.execute_script(_PROBE)[3],
+                 what=f"point {i} in the launch panel")
+        seen.append(d.execute_script(_PROBE))
+    return seen
+
+
+@pytest.fixture(scope="module")
+def browser(tmp_path_factory):
+    te = _browser_bits()
+    yield from te.browser.__wrapped__(tmp_path_factory)
+
+
+def test_no_payload_runs_in_the_static_page(payload_map, browser, tmp_path):
+    te = _browser_bits()
+    out = tmp_path / "page.html"
+    assert main(["explore", str(payload_map), "--html", str(out), "--x", "theta0_deg",
+                 "--y", "chidot0"]) == 0
+    browser.get(out.as_uri())
+    te._wait(lambda: browser.execute_script(te._READY), what="the static page")
+    for pwned, title, bad, _ in _visit_every_point(browser, te):
+        assert pwned is None and title == f"ballsurvey: {TITLE} ({FILE_NAME})" and not bad
+    footer = browser.execute_script(
+        "const v = Bokeh.index.find_one(Bokeh.documents[0].get_model_by_name('footer'));"
+        "return (v.el.shadowRoot || v.el).textContent;")
+    assert FILE_NAME in footer  # shown as text
+
+
+@pytest.mark.parametrize("csp", [True, False], ids=["with-csp", "without-csp"])
+def test_the_static_pages_policy_stops_a_missed_escape(payload_map, browser, tmp_path,
+                                                       monkeypatch, csp):
+    """The escaping turned off: the payloads are in the page as HTML. With the page's
+    Content-Security-Policy none runs; without it (the check that the payloads are live) the
+    file name's runs as the page loads."""
+    from ballsurvey import explore
+
+    te = _browser_bits()
+    monkeypatch.setattr(explore, "_h", str)
+    if not csp:
+        monkeypatch.setattr(explore, "with_csp", lambda page: page)
+    out = tmp_path / "unescaped.html"
+    explore.write_html(payload_map, out, x="theta0_deg", y="chidot0")
+    browser.get(out.as_uri())
+    te._wait(lambda: browser.execute_script(te._READY), what="the static page")
+    if not csp:
+        assert te._wait(lambda: browser.execute_script("return window.__pwned;"),
+                        what="the unescaped payload to run") == 8
+        return
+    browser.execute_script(_SELECT, 0)
+    time.sleep(0.5)
+    pwned, _, bad, _ = browser.execute_script(_PROBE)
+    assert bad  # injected: the policy alone stands in the way
+    assert pwned is None
+
+
+def test_no_payload_runs_in_the_app(payload_map, browser):
+    te = _browser_bits()
+    port = te._free_port()
+    proc = subprocess.Popen([sys.executable, "-m", "ballsurvey", "explore", str(payload_map),
+                             "--port", str(port), "--no-browser", "--x", "theta0_deg",
+                             "--y", "chidot0"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        line = proc.stdout.readline()
+        assert f"http://127.0.0.1:{port}/" in line, line + proc.stderr.read()
+        browser.get(f"http://127.0.0.1:{port}/")
+        te._wait(lambda: browser.execute_script(te._READY), what="the app")
+        for pwned, title, bad, panel in _visit_every_point(browser, te):
+            assert pwned is None and title == f"ballsurvey explore: {FILE_NAME}" and not bad
+            assert "Integrated again" in panel or "cannot integrate" in panel
+        toml = browser.execute_script(
+            "const v = Bokeh.index.find_one(Bokeh.documents[0].get_model_by_name('toml'));"
+            "return (v.el.shadowRoot || v.el).textContent;")
+        assert PAYLOADS[-1].replace("\\", "\\\\") in toml.replace('\\"', '"')
+    finally:
+        proc.kill()
+        proc.wait()

@@ -19,6 +19,7 @@ Units: angles in degrees, rates in rad/s, lengths in m, times in s.
 """
 from __future__ import annotations
 
+import html
 import io
 import json
 import math
@@ -429,6 +430,12 @@ def _fmt(k: str, v) -> str:
     return text[1:] if text.startswith("-") and float(text) == 0 else text  # no "-0.00"
 
 
+def _h(text) -> str:
+    """Text from outside (a name, a file name, an attribute, a message quoting one) as HTML
+    text: every character HTML or an attribute gives a meaning to is an entity."""
+    return html.escape(str(text), quote=True).replace("`", "&#96;")
+
+
 def launch_html(info: dict, again: xr.Dataset | None = None, note: str = "",
                 timing: str = "") -> str:
     """The launch panel: the launch, its label and fields as stored in the map and, when given,
@@ -440,17 +447,17 @@ def launch_html(info: dict, again: xr.Dataset | None = None, note: str = "",
     rows = [("label", "", "label"), ("corner kind", "", "corner_kind")]
     rows += [(text, units, k) for k, (text, units, _) in FIELDS.items()]
     cells = "".join(
-        f"<tr><td>{text}</td><td>{units}</td><td class='bs-map' data-field='{k}'>"
-        f"{_fmt(k, s.get(k))}</td>"
-        + (f"<td class='bs-again' data-field='{k}'>{_fmt(k, a.get(k))}</td>" if a else "")
+        f"<tr><td>{_h(text)}</td><td>{_h(units)}</td><td class='bs-map' data-field='{_h(k)}'>"
+        f"{_h(_fmt(k, s.get(k)))}</td>"
+        + (f"<td class='bs-again' data-field='{_h(k)}'>{_h(_fmt(k, a.get(k)))}</td>" if a else "")
         + "</tr>" for text, units, k in rows if k in s or k in a)
     title = s.get("label", "?") if not a or a.get("label") == s.get("label") else \
         f"{s.get('label', '?')} (integrated again: {a.get('label')})"
     name = f"{info['name']}: " if info["name"] else ""
     col = "<th>integrated again</th>" if a else ""
-    extra = f"<p style='color:#a33'>{note}</p>" if note else ""
-    extra += f"<p style='color:#555'>{timing}</p>" if timing else ""
-    return (f"<div class='bs-launch'><h3 style='margin:0'>{title}</h3><p>{name}{head}</p>"
+    extra = f"<p style='color:#a33'>{_h(note)}</p>" if note else ""
+    extra += f"<p style='color:#555'>{_h(timing)}</p>" if timing else ""
+    return (f"<div class='bs-launch'><h3 style='margin:0'>{_h(title)}</h3><p>{_h(name + head)}</p>"
             f"<table><tr><th>field</th><th>units</th><th>map</th>{col}</tr>{cells}</table>"
             f"{extra}</div>")
 
@@ -603,10 +610,10 @@ def build_document(doc, ds: xr.Dataset, path, x=None, y=None, at=None) -> None:
     view = make_view(ds, x, y, at)
     fig, parts = _map_figure(view, _title(ds, path))
     fp, ft, srcs = _path_figures()
-    fixed = Div(text=view.fixed_text(), name="fixed")
+    fixed = Div(text=_h(view.fixed_text()), name="fixed")
     legend = Div(text=_legend(parts), name="legend")
     info_div = Div(text="<p>Click a launch on the map: it is integrated again with the map's "
-                        f"{settings.method}, step {settings.dt:g} s, for {settings.T:g} s.</p>",
+                        f"{_h(settings.method)}, step {settings.dt:g} s, for {settings.T:g} s.</p>",
                    width=460, name="launch")
     toml = PreText(text="", width=460, name="toml")
     downloads = ColumnDataSource({"csv": [""], "toml": [""], "stem": ["launch"]},
@@ -672,7 +679,7 @@ def build_document(doc, ds: xr.Dataset, path, x=None, y=None, at=None) -> None:
                 lx, ly = g["curves"].get(lv, ([], []))
                 src.data = {"x": lx, "y": ly}
             legend.text = legend_html(g["present"], g["curves"])
-            fixed.text = view.fixed_text()
+            fixed.text = _h(view.fixed_text())
         fig.xaxis.axis_label, fig.yaxis.axis_label = axis_text(view.x), axis_text(view.y)
         parts["marker"].data = {"x": [], "y": []}
 
@@ -782,26 +789,27 @@ const F = fields.data, fmt = (v, f) => {
   return (Number(t) == 0 && t[0] == '-') ? t.slice(1) : t;
 };
 const word = (table, v) => (v >= 0 && v < table.length) ? table[v] : '(not written)';
+const esc = (t) => String(t).replace(/[&<>"'`]/g, (c) => `&#${c.charCodeAt(0)};`);
 let rows = '';
 for (const [key, text, units, f] of spec) {
   if (!(key in F)) { continue; }
   const v = F[key][k];
   const shown = key == 'label' ? word(words, v) :
     key == 'corner_kind' ? word(corners, v) : fmt(v, f);
-  rows += `<tr><td>${text}</td><td>${units}</td>` +
-    `<td class='bs-map' data-field='${key}'>${shown}</td></tr>`;
+  rows += `<tr><td>${esc(text)}</td><td>${esc(units)}</td>` +
+    `<td class='bs-map' data-field='${esc(key)}'>${esc(shown)}</td></tr>`;
 }
 const g6 = (v) => String(Number(Number(v).toPrecision(6)));
 let head = '';
 if (kind === 'grid') {
   const i = k % xs.length, j = Math.floor(k / xs.length);
-  head = `${xname} = ${g6(xs[i])} ${xunit}, ${yname} = ${g6(ys[j])} ${yunit}` +
-    (fixed ? ', ' + fixed : '');
+  head = esc(`${xname} = ${g6(xs[i])} ${xunit}, ${yname} = ${g6(ys[j])} ${yunit}` +
+    (fixed ? ', ' + fixed : ''));
 } else {
-  head = F.name[k] + ': ' +
-    launch_keys.map(([c, nm, u]) => `${nm} = ${g6(F[c][k])} ${u}`).join(', ');
+  head = esc(F.name[k] + ': ' +
+    launch_keys.map(([c, nm, u]) => `${nm} = ${g6(F[c][k])} ${u}`).join(', '));
 }
-info.text = `<div class='bs-launch'><h3 style='margin:0'>${word(words, F.label[k])}</h3>` +
+info.text = `<div class='bs-launch'><h3 style='margin:0'>${esc(word(words, F.label[k]))}</h3>` +
   `<p>${head}</p><table><tr><th>field</th><th>units</th><th>map</th></tr>${rows}</table></div>`;
 const c = cyc.data, a = c.start[k], n = c.count[k];
 if (n == 0) { path.data = {x: [], y: []}; start.data = {x: [], y: []}; return; }
@@ -827,6 +835,37 @@ for (let r = 0; r < reps; r++) {
 path.data = {x: X, y: Y};
 start.data = {x: [x0], y: [y0]};
 """
+
+
+#: the static page's Content-Security-Policy; SCRIPTS: the SHA-256 of each of its own scripts.
+#: Bokeh compiles the page's CustomJS callbacks with `new Function` ('unsafe-eval'); no other
+#: script runs: no inline event handler, no javascript: URL, no script added to the page, nothing
+#: fetched from anywhere.
+CSP = ("default-src 'none'; script-src SCRIPTS 'unsafe-eval'; style-src 'unsafe-inline'; "
+       "img-src data: blob:; font-src data:; base-uri 'none'; form-action 'none'; "
+       "object-src 'none'")
+
+
+def with_csp(page: str) -> str:
+    """A page written by Bokeh's `file_html` with `CSP` as its first element in <head>, naming
+    by hash each inline script the page holds (its data blocks, type application/json, are not
+    scripts)."""
+    import base64
+    import hashlib
+    import re
+
+    hashes = []
+    for attrs, body in re.findall(r"<script\b([^>]*)>(.*?)</script>", page, flags=re.S):
+        kind = re.search(r"""type\s*=\s*["']?([^"' >]+)""", attrs)
+        if kind and kind.group(1).lower() not in ("text/javascript", "module"):
+            continue
+        digest = hashlib.sha256(body.encode("utf-8")).digest()
+        hashes.append(f"'sha256-{base64.b64encode(digest).decode()}'")
+    policy = CSP.replace("SCRIPTS", " ".join(dict.fromkeys(hashes)) or "'none'")
+    at = page.find('<meta charset="utf-8">')
+    head = at + len('<meta charset="utf-8">') if at >= 0 else page.index("<head>") + len("<head>")
+    return (page[:head] + f'\n    <meta http-equiv="Content-Security-Policy" content="{policy}">'
+            + page[head:])
 
 
 def precompute_cycles(ds: xr.Dataset, view: View, progress=None) -> dict:
@@ -924,12 +963,13 @@ def _write_html(ds, path, out, x, y, at, max_paths, progress) -> dict:
     else:
         fig.js_on_event("tap", js)
     legend = Div(text=_legend(parts))
-    fixed = Div(text=view.fixed_text())
+    fixed = Div(text=_h(view.fixed_text()))
     s = run_settings(ds)
-    foot = Div(text=f"<p style='font-size:11px'>Map {Path(str(path)).name}: {s.method}, step "
-                    f"{s.dt:g} s, T = {s.T:g} s. Written by ballsurvey explore --html.</p>")
+    foot = Div(text=f"<p style='font-size:11px'>Map {_h(Path(str(path)).name)}: {_h(s.method)}, "
+                    f"step {s.dt:g} s, T = {s.T:g} s. Written by ballsurvey explore --html.</p>",
+               name="footer")
     page = row(column(fig, legend, fixed, foot), column(info, fp))
-    html = file_html(page, INLINE, title=f"ballsurvey: {_title(ds, path)}")
+    text = with_csp(file_html(page, INLINE, title=f"ballsurvey: {_title(ds, path)}"))
     Path(out).parent.mkdir(parents=True, exist_ok=True)
-    Path(out).write_text(html, encoding="utf-8")
+    Path(out).write_text(text, encoding="utf-8")
     return {"launches": n, "paths": with_paths}
