@@ -278,3 +278,111 @@ def test_no_payload_runs_in_the_app(payload_map, browser):
     finally:
         proc.kill()
         proc.wait()
+
+
+# ---------------------------------------------------------------------------------------------
+# the explorer answers only its own host: raw requests, as a page whose name was rebound to
+# 127.0.0.1 (DNS rebinding) or a sandboxed frame (Origin: null) would send them
+def _raw(port: int, request: str) -> str:
+    """The response's status line to a raw HTTP request."""
+    import socket
+
+    with socket.create_connection(("127.0.0.1", port), timeout=10) as s:
+        s.sendall(request.encode())
+        data = b""
+        while b"\r\n" not in data:
+            more = s.recv(65536)
+            if not more:
+                break
+            data += more
+    return data.decode("latin1").split("\r\n")[0]
+
+
+def _get(port, host, origin=None):
+    return _raw(port, f"GET / HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n"
+                + (f"Origin: {origin}\r\n" if origin else "") + "\r\n")
+
+
+def _upgrade(port, host, origin, token):
+    return _raw(port, f"GET /ws HTTP/1.1\r\nHost: {host}\r\nUpgrade: websocket\r\n"
+                "Connection: Upgrade\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n"
+                f"Sec-WebSocket-Version: 13\r\nSec-WebSocket-Protocol: bokeh, {token}\r\n"
+                + (f"Origin: {origin}\r\n" if origin else "") + "\r\n")
+
+
+def _token(port) -> str:
+    """A session token, as the app's own page hands it out (to 127.0.0.1)."""
+    import re
+    import socket
+
+    with socket.create_connection(("127.0.0.1", port), timeout=10) as s:
+        s.sendall(f"GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nConnection: close\r\n\r\n"
+                  .encode())
+        page = b""
+        while more := s.recv(65536):
+            page += more
+    m = re.search(r'token&quot;:&quot;([^&]+)&quot;|"token":\s*"([^"]+)"', page.decode())
+    return m.group(1) or m.group(2)
+
+
+@pytest.fixture
+def served(base):
+    """serve(extra arguments) -> (port, process) of `explore` on the crafted-test map."""
+    pytest.importorskip("bokeh")
+    import socket
+
+    procs = []
+
+    def start(*extra):
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            port = s.getsockname()[1]
+        p = subprocess.Popen([sys.executable, "-m", "ballsurvey", "explore", str(base), "--port",
+                              str(port), "--no-browser", "--at", "phidot0=-3", *extra],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        procs.append(p)
+        line = p.stdout.readline()
+        assert f"127.0.0.1:{port}" in line, line + p.stderr.read()
+        return port, p
+    yield start
+    for p in procs:
+        p.kill()
+        p.wait()
+
+
+def test_the_app_answers_only_its_own_host(served):
+    port, _ = served()
+    token = _token(port)
+    own, evil = f"127.0.0.1:{port}", f"evil.example:{port}"
+    assert _get(port, own).endswith("200 OK")
+    assert _get(port, f"localhost:{port}").endswith("200 OK")
+    assert _get(port, evil).endswith("403 Forbidden")  # a foreign Host
+    assert _get(port, evil, f"http://{evil}").endswith("403 Forbidden")  # ... equal to Origin
+    assert _get(port, f"127.0.0.1:{port + 1}").endswith("403 Forbidden")  # another port
+    assert _raw(port, "GET / HTTP/1.0\r\n\r\n").endswith("403 Forbidden")  # no Host at all
+    assert _upgrade(port, evil, f"http://{evil}", token).endswith("403 Forbidden")
+    assert _upgrade(port, own, "null", token).endswith("403 Forbidden")  # a null Origin
+    assert _upgrade(port, own, f"http://{evil}", token).endswith("403 Forbidden")
+    assert _upgrade(port, own, f"http://{own}", token).endswith("101 Switching Protocols")
+
+
+def test_allow_host_shares_deliberately_with_a_warning(served):
+    port, p = served("--allow-host", "Proxy.Example")
+    assert _get(port, f"proxy.example:{port}").endswith("200 OK")
+    assert _get(port, f"evil.example:{port}").endswith("403 Forbidden")
+    p.kill()
+    warning = p.stderr.readline()
+    assert warning.startswith("warning: --allow-host") and f"proxy.example:{port}" in warning
+
+
+@pytest.mark.parametrize("argv, msg", [
+    (["--allow-host", "a b"], "not a host name"),
+    (["--allow-host", "x:99999"], "not a host name"),
+    (["--allow-host", "x", "--html", "p.html"], "for the app"),
+])
+def test_allow_host_values_are_checked_first(base, tmp_path, capsys, monkeypatch, argv, msg):
+    pytest.importorskip("bokeh")
+    monkeypatch.chdir(tmp_path)
+    assert main(["explore", str(base), "--no-browser", *argv]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and msg in err
