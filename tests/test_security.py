@@ -386,3 +386,54 @@ def test_allow_host_values_are_checked_first(base, tmp_path, capsys, monkeypatch
     assert main(["explore", str(base), "--no-browser", *argv]) == 2
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and msg in err
+
+
+# ---------------------------------------------------------------------------------------------
+# commands' own promises
+def test_a_printed_force_resume_runs_as_printed_after_a_physics_edit(tmp_path, monkeypatch,
+                                                                      capsys):
+    """A map and the parts of an interrupted rerun, both made before the code changed: the
+    refusal offers --force --resume only where it would run (parts of other code cannot be
+    resumed), and what it offers runs."""
+    from ballsurvey.sweep import parts, run_sweep
+    from test_reliability import Crash, crash_at, tiny_spec
+
+    spec = tiny_spec(tmp_path, "m.nc")
+    run_sweep(spec, command="test")
+    with pytest.raises(Crash):
+        run_sweep(spec, force=True, on_chunk=crash_at(1), command="test")
+    assert (parts.parts_dir(spec.output) / parts.MANIFEST).is_file()
+    monkeypatch.setattr(parts, "code_digest", lambda: "0" * 64)  # the physics edited since
+    toml = str(tmp_path / "tiny.toml")
+    assert main(["sweep", toml, "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "other code" in err
+    offered = next(a for a in (["--force", "--resume"], ["--force"]) if " ".join(a) in err)
+    assert main(["sweep", toml, "--no-progress", *offered]) == 0, capsys.readouterr().err
+
+
+@pytest.mark.parametrize("fps", ["0.001", "0.5", "0", "-3", "nan", "1e9"])
+def test_animate_fps_is_checked_before_any_work(tmp_path, capsys, monkeypatch, fps):
+    import importlib
+
+    def no_work(*a, **k):
+        raise AssertionError("integrated before checking --fps")
+    monkeypatch.setattr(importlib.import_module("ballsurvey.simulate"), "simulate", no_work)
+    assert main(["animate", "--theta0-deg", "2", "--chidot0", "4", "--phidot0", "-3", "--fps",
+                 fps, "-o", str(tmp_path / "a.gif")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "--fps" in err
+    assert not (tmp_path / "a.gif").exists()
+
+
+@pytest.mark.parametrize("kind", ["folder", "fifo", "device"])
+def test_fit_says_what_a_track_that_is_no_file_is(tmp_path, capsys, kind):
+    import os
+
+    path = {"folder": tmp_path, "device": "/dev/null"}.get(kind, tmp_path / "pipe.csv")
+    if kind == "fifo":
+        os.mkfifo(path)  # opened for reading, it would wait for a writer for ever
+    assert main(["fit", str(path)]) == 2
+    err = capsys.readouterr().err
+    words = {"folder": "is a folder", "fifo": "is a FIFO", "device": "is a device"}[kind]
+    assert len(err.strip().splitlines()) == 1 and words in err and "no such file" not in err

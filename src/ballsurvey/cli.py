@@ -612,7 +612,7 @@ def _cmd_animate(args):
     ball = _ball_arg(args)
     for name in ("theta0_deg", "thetadot0", "chidot0", "phidot0", "chi0_deg"):
         _launch_opt("--" + name.replace("_", "-"), name, getattr(args, name), ball)
-    fps = _opt("--fps", args.fps, positive=True, hi=120)
+    fps = _opt("--fps", args.fps, lo=1, hi=120)  # a GIF frame lasts at most 655 s
     speed = _opt("--speed", args.speed, positive=True, hi=100)
     probe = _opt("--probe-m", args.probe_m, nonnegative=True, hi=1.0)
     try:
@@ -1052,7 +1052,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="duration of the motion shown (s); a square or triangle of the paper "
                          "closes in 2-3 s")
     an.add_argument("--dt", type=float, default=1e-4, metavar="SECONDS", help="largest step (s)")
-    an.add_argument("--fps", type=float, default=20.0, help="frames per second of the file")
+    an.add_argument("--fps", type=float, default=20.0,
+                    help="frames per second of the file (1 to 120)")
     an.add_argument("--speed", type=float, default=0.5,
                     help="seconds of motion per second of playback (0.5: half speed, so the "
                          "quick turns near theta = 90 deg can be followed)")

@@ -200,9 +200,7 @@ def read_track(path, probe_m: float | None = None) -> Track:
     ignored. InputError (one line) for a file that is not such a track."""
     import pandas as pd
 
-    p = Path(path)
-    if not p.is_file():
-        raise limits.InputError(f"{path}: no such file")
+    p = limits.regular_file(path, "track (a CSV file)")
     try:
         df = pd.read_csv(p, skipinitialspace=True)
     except (ValueError, UnicodeDecodeError, pd.errors.ParserError) as exc:

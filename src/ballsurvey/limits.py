@@ -254,3 +254,25 @@ def scheduler(addr, name: str = "--scheduler") -> str:
 
 def samples(n, name: str = "n_out") -> int:
     return number(name, n, integer=True, lo=2, hi=MAX_SAMPLES)
+
+
+def regular_file(path, what: str = "file"):
+    """`path` as a Path when it is a regular file (or a link to one); InputError saying what it
+    is otherwise: missing, a folder, a FIFO (opening one would wait for a writer), a device or
+    a socket. Only stat is called: nothing is opened."""
+    import stat
+    from pathlib import Path
+
+    p = Path(path)
+    try:
+        mode = p.stat().st_mode
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such file") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
+    if stat.S_ISREG(mode):
+        return p
+    kind = ("a folder" if stat.S_ISDIR(mode) else "a FIFO (named pipe)" if stat.S_ISFIFO(mode)
+            else "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode)
+            else "a socket" if stat.S_ISSOCK(mode) else "not a regular file")
+    raise InputError(f"{path} is {kind}, not a {what}")
