@@ -121,6 +121,20 @@ def test_label_codes_must_be_ballsurveys(base, tmp_path):
         api.open_map(bad)
 
 
+def test_codes_outside_the_tables_in_the_results_are_unwritten_cells(base, tmp_path, capsys):
+    """Result values are not checked when a map is opened (that would read them all): a label
+    or corner kind code outside ballsurvey's tables reads as an unwritten cell everywhere."""
+    bad = tmp_path / "codes.nc"
+    shutil.copy(base, bad)
+    with netCDF4.Dataset(bad, "a") as nc:
+        nc["corner_kind"][...] = 99
+        nc["label"][0, 0, 0, 0] = 99
+    for argv in (["gallery", "--per-label", "1", "-o", str(tmp_path / "g.png")],
+                 ["query", "--shape", "square"], ["plot", "--at", "phidot0=-3", "-o",
+                                                  str(tmp_path / "p.png")]):
+        assert main([argv[0], str(bad), *argv[1:]]) == 0, capsys.readouterr().err
+
+
 # ---------------------------------------------------------------------------------------------
 # text from outside in the pages, in a real headless Chromium
 #: each sets window.__pwned (and the page's title) if it ever runs
@@ -437,3 +451,23 @@ def test_fit_says_what_a_track_that_is_no_file_is(tmp_path, capsys, kind):
     err = capsys.readouterr().err
     words = {"folder": "is a folder", "fifo": "is a FIFO", "device": "is a device"}[kind]
     assert len(err.strip().splitlines()) == 1 and words in err and "no such file" not in err
+
+
+def test_a_static_page_whose_paths_would_take_too_long_is_written_without(base, tmp_path,
+                                                                         monkeypatch):
+    """The map's own settings within every limit, its stored theta periods long (T = 1e4 s,
+    dt = 1e-3 s: 1e7 steps a launch at most): the page's paths would take 6e7 steps; with the
+    page's budget at 1e6 it is written at once, without paths, and says why."""
+    pytest.importorskip("bokeh")
+    from ballsurvey import explore
+
+    bad = tmp_path / "long.nc"
+    shutil.copy(base, bad)
+    with netCDF4.Dataset(bad, "a") as nc:
+        nc.setncatts({"run_T_s": 1e4, "run_dt_s": 1e-3, "run_dt_s_requested": 1e-3})
+        nc["theta_period_s"][...] = 1e9
+    monkeypatch.setattr(explore, "MAX_HTML_STEPS", 10**6)
+    t0 = time.monotonic()
+    r = explore.write_html(bad, tmp_path / "p.html", at={"phidot0": -3.0})
+    assert r == {"launches": 6, "paths": False} and time.monotonic() - t0 < 30
+    assert "this slice's take 6e+07" in (tmp_path / "p.html").read_text()

@@ -38,7 +38,7 @@ from .compose import METHODS
 from .gallery import BALL_KEYS, LAUNCH_KEYS
 from .integrate.outcome import FORMULATIONS
 from .integrate.tableaus import FIXED_STEP
-from .limits import InputError, RunError, replay_steps, step_count
+from .limits import CLASSIFY_INT_RANGES, InputError, RunError, replay_steps, step_count
 from .plot import (
     EXACT_POLYGON_DASH,
     EXACT_POLYGON_LEVELS,
@@ -52,8 +52,15 @@ INSTALL_HINT = "pip install 'ballsurvey[explore]'"
 MAX_HTML_PATHS = 1024
 #: the largest slice a static page holds (hover and launch panel)
 MAX_HTML_LAUNCHES = 250_000
+#: most cycles of a star drawn on the static page (the classifier's largest max_star_points)
+MAX_STAR_POINTS = CLASSIFY_INT_RANGES["max_star_points"][1]
 #: samples kept along a clicked launch's path (about; fixed steps take a divisor of the steps)
 PATH_SAMPLES = 4000
+#: most integration steps the static page's paths may take in all (about a minute of one core)
+MAX_HTML_STEPS = 10**8
+#: theta periods each launch of the static page is integrated for (one whole cycle from its
+#: first theta maximum)
+CYCLE_SPAN = 2.3
 #: samples of the one theta cycle kept per launch in the static page
 CYCLE_SAMPLES = 120
 #: the widest image drawn for an axis whose values are not evenly spaced (pixels)
@@ -253,7 +260,7 @@ def orbit_turn(stored: dict) -> tuple[float, int]:
     if not math.isfinite(turn):
         return 0.0, 1
     if stored.get("star_points", 0) and stored["star_points"] > 0:
-        return turn, int(stored["star_points"])
+        return turn, int(min(stored["star_points"], MAX_STAR_POINTS))
     return turn, int(min(60, math.ceil(360.0 / max(abs(turn), 6.0)))) if abs(turn) > 1e-9 else 4
 
 
@@ -912,6 +919,14 @@ def with_csp(page: str) -> str:
             + page[head:])
 
 
+def page_steps(view: View, settings: RunSettings) -> int:
+    """Integration steps `precompute_cycles` takes for the launches of a view read into memory
+    (each integrated for CYCLE_SPAN of its stored theta periods, at most the map's T)."""
+    period = np.ravel(view.ds["theta_period_s"].values) if "theta_period_s" in view.ds else []
+    return sum(step_count(min(settings.T, CYCLE_SPAN * p), settings.dt) for p in period
+               if math.isfinite(p) and p > 0)
+
+
 def precompute_cycles(ds: xr.Dataset, view: View, progress=None) -> dict:
     """For each launch k of the view: one theta cycle of its path (integrated again for about
     two theta periods with the map's settings), the turn per cycle (deg) and the cycles to
@@ -925,7 +940,7 @@ def precompute_cycles(ds: xr.Dataset, view: View, progress=None) -> dict:
         period = info["stored"].get("theta_period_s", math.nan)
         cyc = None
         if math.isfinite(period) and period > 0:
-            T = min(settings.T, 2.3 * period)
+            T = min(settings.T, CYCLE_SPAN * period)
             try:
                 traj = integrate_launch(ds, info["launch"], info["ball"], T=T,
                                         n_out=max(200, int(4 * CYCLE_SAMPLES * T / period)),
@@ -976,8 +991,9 @@ def _write_html(ds, path, out, x, y, at, max_paths, progress) -> dict:
                          "(without --html), which reads each slice as it is shown")
     fig, parts = _map_figure(view, _title(ds, path))
     fp, _, srcs = _path_figures()
-    with_paths = n <= max_paths
     here = view.loaded()
+    work = page_steps(here, run_settings(ds)) if n <= max_paths else 0
+    with_paths = n <= max_paths and work <= MAX_HTML_STEPS
     fields_src = ColumnDataSource(launch_columns(here), name="fields")
     cyc = precompute_cycles(here.ds, here, progress) if with_paths else {
         k: np.zeros(n, np.int32) for k in ("start", "count", "reps")} | {
@@ -989,7 +1005,10 @@ def _write_html(ds, path, out, x, y, at, max_paths, progress) -> dict:
         ", and its path: one theta cycle integrated again with the map's settings, turned about "
         "the orbit centre once per cycle" if with_paths else
         f" (paths are precomputed for slices of at most {max_paths} launches; this one has "
-        f"{n}: `ballsurvey explore` integrates any launch on click)") + ".</p>",
+        f"{n}: `ballsurvey explore` integrates any launch on click)" if n > max_paths else
+        f" (paths are precomputed where they take at most {MAX_HTML_STEPS:.0e} steps in all; "
+        f"this slice's take {work:.2g}: `ballsurvey explore` integrates any launch on click)")
+        + ".</p>",
         width=460, name="launch")
     grid = parts.get("grid", {"xs": [], "ys": []})
     js = CustomJS(args=dict(kind="points" if view.points else "grid",

@@ -81,7 +81,7 @@ def sample_launches(ds: xr.Dataset, per_label: int = 4, seed: int = 0,
                 if k in flat:
                     row[k] = float(flat[k].values[i])
             if "corner_kind" in flat:
-                row["corner_kind"] = CORNER_KINDS[int(flat.corner_kind.values[i])]
+                row["corner_kind"] = str(decode_label(flat.corner_kind.values[i], CORNER_KINDS))
             rows.append(row)
     return rows
 
