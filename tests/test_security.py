@@ -193,6 +193,16 @@ const v = Bokeh.index.find_one(Bokeh.documents[0].get_model_by_name('launch'));
 const root = v.el.shadowRoot || v.el;
 return [window.__pwned === undefined ? null : window.__pwned, document.title, bad,
         root.textContent];"""
+#: all text shown on the page (not scripts' or styles'), shadow roots included
+_TEXT = """const out = [];
+const walk = (root) => {
+  const w = document.createTreeWalker(root, NodeFilter.SHOW_TEXT);
+  while (w.nextNode()) {
+    const p = w.currentNode.parentNode;
+    if (!p || !['SCRIPT', 'STYLE'].includes(p.nodeName)) { out.push(w.currentNode.data); } }
+  for (const el of root.querySelectorAll('*')) { if (el.shadowRoot) { walk(el.shadowRoot); } } };
+walk(document.body);
+return out.join(' ');"""
 _SELECT = """const src = Bokeh.documents[0].get_model_by_name('points');
 src.selected.indices = [arguments[0]];"""
 
@@ -213,8 +223,8 @@ def _visit_every_point(d, te):
         sx, sy = d.execute_script(te._WHERE, "map", x, y)
         a = ActionBuilder(d)
         a.pointer_action.move_to_location(int(round(sx)), int(round(sy)))
-        a.perform()  # the hover tooltip, with the point's name
-        time.sleep(0.2)
+        a.perform()  # the hover tooltip, with the point's name as text
+        te._wait(lambda i=i: PAYLOADS[i] in d.execute_script(_TEXT), what=f"point {i}'s tooltip")
         d.execute_script(_SELECT, i)
         te._wait(lambda i=i: PAYLOADS[i] in d.execute_script(_PROBE)[3],
                  what=f"point {i} in the launch panel")
