@@ -133,18 +133,10 @@ COORDS = ["theta0_deg", "chidot0", "phidot0", "thetadot0", "chi0_deg"]
 
 @pytest.fixture(scope="module")
 def base_map(tmp_path_factory):
+    from test_security import GRID
+
     d = tmp_path_factory.mktemp("prop")
-    spec = """
-[launch]
-theta0_deg = [2.0, 10.0]
-thetadot0 = 0.0
-chidot0 = [4.0, 6.0, 8.0]
-phidot0 = [-3.0, -2.5]
-[run]
-T = 3.0
-dt = 2e-4
-"""
-    api.sweep(spec, output=d / "base.nc", progress=False, notice=lambda m: None)
+    api.sweep(GRID, output=d / "base.nc", progress=False, notice=lambda m: None)
     return d / "base.nc"
 
 
