@@ -983,6 +983,7 @@ def _write_html(ds, path, out, x, y, at, max_paths, progress) -> dict:
     from bokeh.models import ColumnDataSource, CustomJS, Div, TapTool
     from bokeh.resources import INLINE
 
+    s = run_settings(ds)  # a map whose launches cannot be integrated again: refused first
     view = make_view(ds, x, y, at)
     n = ds.sizes["launch"] if view.points else ds.sizes[view.x] * ds.sizes[view.y]
     if n > MAX_HTML_LAUNCHES:
@@ -992,7 +993,7 @@ def _write_html(ds, path, out, x, y, at, max_paths, progress) -> dict:
     fig, parts = _map_figure(view, _title(ds, path))
     fp, _, srcs = _path_figures()
     here = view.loaded()
-    work = page_steps(here, run_settings(ds)) if n <= max_paths else 0
+    work = page_steps(here, s) if n <= max_paths else 0
     with_paths = n <= max_paths and work <= MAX_HTML_STEPS
     fields_src = ColumnDataSource(launch_columns(here), name="fields")
     cyc = precompute_cycles(here.ds, here, progress) if with_paths else {
@@ -1027,7 +1028,6 @@ def _write_html(ds, path, out, x, y, at, max_paths, progress) -> dict:
         fig.js_on_event("tap", js)
     legend = Div(text=_legend(parts))
     fixed = Div(text=_h(view.fixed_text()))
-    s = run_settings(ds)
     foot = Div(text=f"<p style='font-size:11px'>Map {_h(Path(str(path)).name)}: {_h(s.method)}, "
                     f"step {s.dt:g} s, T = {s.T:g} s. Written by ballsurvey explore --html.</p>",
                name="footer")

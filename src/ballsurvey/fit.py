@@ -206,6 +206,9 @@ def read_track(path, probe_m: float | None = None) -> Track:
     except (ValueError, UnicodeDecodeError, pd.errors.ParserError) as exc:
         raise limits.InputError(f"{path}: not a CSV table ({str(exc).splitlines()[0]})") from None
     df.columns = [str(c).strip() for c in df.columns]
+    twice = sorted({c for c in df.columns if list(df.columns).count(c) > 1})
+    if twice:
+        raise limits.InputError(f"{path}: column {twice[0]!r} appears more than once")
     cols = {}
     for name in ("t", "x", "y", "theta_deg", "chidot") + PROBE_COLUMNS:
         if name in df:
