@@ -209,7 +209,8 @@ def open_map(path, load: bool | None = None) -> xr.Dataset:
     Raises
     ------
     InputError
-        Anything that is not a map (a spec, a folder, another file), with one line.
+        Anything that is not a map (a spec, a folder, another file), or a map whose attributes
+        or coordinates a spec could not hold (`sweep.spec.check_map`), with one line.
     """
     if not isinstance(path, (str, os.PathLike)):
         raise InputError(f"open_map: a path to a .nc file, got {type(path).__name__}")
