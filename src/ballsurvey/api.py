@@ -209,7 +209,8 @@ def open_map(path, load: bool | None = None) -> xr.Dataset:
     Raises
     ------
     InputError
-        Anything that is not a map (a spec, a folder, another file), with one line.
+        Anything that is not a map (a spec, a folder, another file), or a map whose attributes
+        or coordinates a spec could not hold (`sweep.spec.check_map`), with one line.
     """
     if not isinstance(path, (str, os.PathLike)):
         raise InputError(f"open_map: a path to a .nc file, got {type(path).__name__}")
@@ -247,6 +248,13 @@ def open_map(path, load: bool | None = None) -> xr.Dataset:
             ds.close()
             raise InputError(f"{path} lacks the launch conditions {', '.join(missing)}: not a "
                              "ballsurvey map")
+        from .sweep.spec import check_map
+
+        try:  # a spec's rules: a crafted or damaged map is refused before any work
+            check_map(ds, str(path))
+        except InputError:
+            ds.close()
+            raise
         if load is None:
             load = p.stat().st_size < 256 * 2**20
         if load:

@@ -474,15 +474,22 @@ def _cmd_explore(args):
     if args.html is not None:
         from .explore import write_html
 
+        if args.allow_host:
+            raise UserError("--allow-host is for the app; a static page (--html) is served by "
+                            "no one")
         out = _out_file("--html", args.html, ".html")
         r = write_html(args.result, out, x=args.x, y=args.y, at=at)
         paths = "with paths" if r["paths"] else "without paths (slice too large)"
         print(f"wrote {out} ({r['launches']} launches shown, {paths})")
         return
-    from .explore import serve
+    from .explore import host_names, serve
 
+    extra = host_names(args.allow_host or [], int(port))
+    if extra:
+        print(f"warning: --allow-host: the app also answers {', '.join(extra)}: whoever reaches "
+              "it by that name can drive it and read the map", file=sys.stderr, flush=True)
     serve(args.result, port=int(port), open_browser=not args.no_browser, x=args.x, y=args.y,
-          at=at, ready=lambda line: print(line, flush=True))
+          at=at, ready=lambda line: print(line, flush=True), allow_hosts=extra)
 
 
 def _cmd_path(args):
@@ -623,7 +630,7 @@ def _cmd_animate(args):
     ball = _ball_arg(args)
     for name in ("theta0_deg", "thetadot0", "chidot0", "phidot0", "chi0_deg"):
         _launch_opt("--" + name.replace("_", "-"), name, getattr(args, name), ball)
-    fps = _opt("--fps", args.fps, positive=True, hi=120)
+    fps = _opt("--fps", args.fps, lo=1, hi=120)  # a GIF frame lasts at most 655 s
     speed = _opt("--speed", args.speed, positive=True, hi=100)
     probe = _opt("--probe-m", args.probe_m, nonnegative=True, hi=1.0)
     mu_r = _rolling_opt(args)
@@ -1079,6 +1086,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="instead: write a self-contained static page (works offline) with hover "
                         "values and, for a slice of at most 1024 launches, each launch's path "
                         "precomputed over one theta cycle and drawn on click")
+    e.add_argument("--allow-host", action="append", metavar="NAME[:PORT]",
+                   help="also answer requests for this host name (repeatable; default port: "
+                        "--port), for deliberate sharing behind a proxy; without it the app "
+                        "answers only Host 127.0.0.1:PORT and localhost:PORT")
     e.set_defaults(func=_cmd_explore)
 
     an = cmd("animate", help="animate one launch: the truncated ball with its flat face and probe "
@@ -1088,7 +1099,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="duration of the motion shown (s); a square or triangle of the paper "
                          "closes in 2-3 s")
     an.add_argument("--dt", type=float, default=1e-4, metavar="SECONDS", help="largest step (s)")
-    an.add_argument("--fps", type=float, default=20.0, help="frames per second of the file")
+    an.add_argument("--fps", type=float, default=20.0,
+                    help="frames per second of the file (1 to 120)")
     an.add_argument("--speed", type=float, default=0.5,
                     help="seconds of motion per second of playback (0.5: half speed, so the "
                          "quick turns near theta = 90 deg can be followed)")

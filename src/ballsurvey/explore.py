@@ -19,11 +19,12 @@ Units: angles in degrees, rates in rad/s, lengths in m, times in s.
 """
 from __future__ import annotations
 
+import html
 import io
 import json
 import math
 import time
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -34,10 +35,10 @@ from .ball import Ball
 from .classify.labels import CORNER_KINDS, LABELS, Thresholds
 from .classify.observer import theta_maxima
 from .compose import METHODS
-from .gallery import BALL_KEYS, LAUNCH_KEYS, map_ball
+from .gallery import BALL_KEYS, LAUNCH_KEYS
 from .integrate.outcome import FORMULATIONS
 from .integrate.tableaus import FIXED_STEP
-from .limits import InputError, RunError, step_count
+from .limits import CLASSIFY_INT_RANGES, InputError, RunError, replay_steps, step_count
 from .plot import (
     EXACT_POLYGON_DASH,
     EXACT_POLYGON_LEVELS,
@@ -51,8 +52,15 @@ INSTALL_HINT = "pip install 'ballsurvey[explore]'"
 MAX_HTML_PATHS = 1024
 #: the largest slice a static page holds (hover and launch panel)
 MAX_HTML_LAUNCHES = 250_000
+#: most cycles of a star drawn on the static page (the classifier's largest max_star_points)
+MAX_STAR_POINTS = CLASSIFY_INT_RANGES["max_star_points"][1]
 #: samples kept along a clicked launch's path (about; fixed steps take a divisor of the steps)
 PATH_SAMPLES = 4000
+#: most integration steps the static page's paths may take in all (about a minute of one core)
+MAX_HTML_STEPS = 10**8
+#: theta periods each launch of the static page is integrated for (one whole cycle from its
+#: first theta maximum)
+CYCLE_SPAN = 2.3
 #: samples of the one theta cycle kept per launch in the static page
 CYCLE_SAMPLES = 120
 #: the widest image drawn for an axis whose values are not evenly spaced (pixels)
@@ -115,23 +123,28 @@ class RunSettings:
 
 
 def run_settings(ds: xr.Dataset) -> RunSettings:
-    """The map's method, step, duration, tolerances, classifier thresholds and ball."""
-    a = ds.attrs
-    method, note = str(a.get("run_method", "rk4")), ""
-    if "run_method" not in a or "run_dt_s" not in a:
+    """The map's method, step, duration, tolerances, classifier thresholds and ball, checked by a
+    spec's rules (`sweep.spec.map_settings`) and by the steps a click may take
+    (`limits.replay_steps`): InputError, one line, before any work."""
+    from .sweep.spec import map_settings
+
+    src = str(ds.encoding.get("source", "map"))
+    m = map_settings(ds.attrs, src)
+    method, note = m.method, ""
+    if not m.recorded:
         note = ("the map records no method or step: this launch is integrated with "
-                f"{method}, step {float(a.get('run_dt_s', 1e-4)):g} s")
+                f"{method}, step {m.dt:g} s")
     if method not in METHODS:  # an adaptive pair on SIMD lanes: one launch takes dopri5
         note = (f"the map's {method} integrates ensembles only: this launch is integrated with "
                 f"dopri5 at the map's rtol and atol")
         method = "dopri5"
-    default = Thresholds()
-    kw = {f.name: type(getattr(default, f.name))(a[f"classify_{f.name}"])
-          for f in fields(Thresholds) if f"classify_{f.name}" in a}
-    return RunSettings(T=float(a.get("run_T_s", 20.0)), dt=float(a.get("run_dt_s", 1e-4)),
-                       method=method, rtol=float(a.get("run_rtol", 1e-9)),
-                       atol=float(a.get("run_atol", 1e-12)), thresholds=Thresholds(**kw),
-                       ball=map_ball(ds), note=note)
+    try:
+        replay_steps(m.T, m.dt, method in FIXED_STEP, "attribute run_dt_s",
+                     "explore integrates launches again")
+    except InputError as exc:
+        raise InputError(f"{src}: {exc}") from None
+    return RunSettings(T=m.T, dt=m.dt, method=method, rtol=m.rtol, atol=m.atol,
+                       thresholds=m.thresholds, ball=m.ball, note=note)
 
 
 def path_samples(T: float, dt: float, method: str, target: int = PATH_SAMPLES) -> int:
@@ -247,7 +260,7 @@ def orbit_turn(stored: dict) -> tuple[float, int]:
     if not math.isfinite(turn):
         return 0.0, 1
     if stored.get("star_points", 0) and stored["star_points"] > 0:
-        return turn, int(stored["star_points"])
+        return turn, int(min(stored["star_points"], MAX_STAR_POINTS))
     return turn, int(min(60, math.ceil(360.0 / max(abs(turn), 6.0)))) if abs(turn) > 1e-9 else 4
 
 
@@ -424,6 +437,12 @@ def _fmt(k: str, v) -> str:
     return text[1:] if text.startswith("-") and float(text) == 0 else text  # no "-0.00"
 
 
+def _h(text) -> str:
+    """Text from outside (a name, a file name, an attribute, a message quoting one) as HTML
+    text: every character HTML or an attribute gives a meaning to is an entity."""
+    return html.escape(str(text), quote=True).replace("`", "&#96;")
+
+
 def launch_html(info: dict, again: xr.Dataset | None = None, note: str = "",
                 timing: str = "") -> str:
     """The launch panel: the launch, its label and fields as stored in the map and, when given,
@@ -435,17 +454,17 @@ def launch_html(info: dict, again: xr.Dataset | None = None, note: str = "",
     rows = [("label", "", "label"), ("corner kind", "", "corner_kind")]
     rows += [(text, units, k) for k, (text, units, _) in FIELDS.items()]
     cells = "".join(
-        f"<tr><td>{text}</td><td>{units}</td><td class='bs-map' data-field='{k}'>"
-        f"{_fmt(k, s.get(k))}</td>"
-        + (f"<td class='bs-again' data-field='{k}'>{_fmt(k, a.get(k))}</td>" if a else "")
+        f"<tr><td>{_h(text)}</td><td>{_h(units)}</td><td class='bs-map' data-field='{_h(k)}'>"
+        f"{_h(_fmt(k, s.get(k)))}</td>"
+        + (f"<td class='bs-again' data-field='{_h(k)}'>{_h(_fmt(k, a.get(k)))}</td>" if a else "")
         + "</tr>" for text, units, k in rows if k in s or k in a)
     title = s.get("label", "?") if not a or a.get("label") == s.get("label") else \
         f"{s.get('label', '?')} (integrated again: {a.get('label')})"
     name = f"{info['name']}: " if info["name"] else ""
     col = "<th>integrated again</th>" if a else ""
-    extra = f"<p style='color:#a33'>{note}</p>" if note else ""
-    extra += f"<p style='color:#555'>{timing}</p>" if timing else ""
-    return (f"<div class='bs-launch'><h3 style='margin:0'>{title}</h3><p>{name}{head}</p>"
+    extra = f"<p style='color:#a33'>{_h(note)}</p>" if note else ""
+    extra += f"<p style='color:#555'>{_h(timing)}</p>" if timing else ""
+    return (f"<div class='bs-launch'><h3 style='margin:0'>{_h(title)}</h3><p>{_h(name + head)}</p>"
             f"<table><tr><th>field</th><th>units</th><th>map</th>{col}</tr>{cells}</table>"
             f"{extra}</div>")
 
@@ -598,10 +617,10 @@ def build_document(doc, ds: xr.Dataset, path, x=None, y=None, at=None) -> None:
     view = make_view(ds, x, y, at)
     fig, parts = _map_figure(view, _title(ds, path))
     fp, ft, srcs = _path_figures()
-    fixed = Div(text=view.fixed_text(), name="fixed")
+    fixed = Div(text=_h(view.fixed_text()), name="fixed")
     legend = Div(text=_legend(parts), name="legend")
     info_div = Div(text="<p>Click a launch on the map: it is integrated again with the map's "
-                        f"{settings.method}, step {settings.dt:g} s, for {settings.T:g} s.</p>",
+                        f"{_h(settings.method)}, step {settings.dt:g} s, for {settings.T:g} s.</p>",
                    width=460, name="launch")
     toml = PreText(text="", width=460, name="toml")
     downloads = ColumnDataSource({"csv": [""], "toml": [""], "stem": ["launch"]},
@@ -667,7 +686,7 @@ def build_document(doc, ds: xr.Dataset, path, x=None, y=None, at=None) -> None:
                 lx, ly = g["curves"].get(lv, ([], []))
                 src.data = {"x": lx, "y": ly}
             legend.text = legend_html(g["present"], g["curves"])
-            fixed.text = view.fixed_text()
+            fixed.text = _h(view.fixed_text())
         fig.xaxis.axis_label, fig.yaxis.axis_label = axis_text(view.x), axis_text(view.y)
         parts["marker"].data = {"x": [], "y": []}
 
@@ -715,11 +734,53 @@ def build_document(doc, ds: xr.Dataset, path, x=None, y=None, at=None) -> None:
     doc.title = f"ballsurvey explore: {Path(str(path)).name}"
 
 
+def host_names(names, port: int) -> list[str]:
+    """--allow-host values as HOST:PORT (lower case; PORT: `port` where a name gives none);
+    InputError for anything that is not a host name or address with an optional port."""
+    import re
+
+    out = []
+    for name in names:
+        m = re.fullmatch(r"(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9._-]+)(?::(\d{1,5}))?", str(name).strip())
+        if not m or (m.group(2) and not 1 <= int(m.group(2)) <= 65535):
+            raise InputError(f"--allow-host: {name!r} is not a host name with an optional "
+                             "port (NAME or NAME:PORT)")
+        out.append(f"{m.group(1).lower()}:{m.group(2) or port}")
+    return list(dict.fromkeys(out))
+
+
+def _answer_only(tornado_app, hosts) -> None:
+    """Make the Bokeh server's Tornado application answer only requests whose Host header is
+    one of `hosts` (HOST:PORT): any other, or none, gets 403 and nothing of the app (a page
+    whose name was rebound to 127.0.0.1 cannot reach it)."""
+    from tornado.web import RequestHandler
+
+    allowed = {h.lower() for h in hosts}
+
+    class Refused(RequestHandler):
+        def prepare(self):
+            self.set_status(403)
+            self.set_header("Content-Type", "text/plain; charset=utf-8")
+            self.finish("ballsurvey explore answers only " + ", ".join(sorted(allowed)) + "\n")
+
+    find = tornado_app.find_handler
+
+    def find_handler(request, **kw):
+        if request.headers.get("Host", "").strip().lower() not in allowed:
+            return tornado_app.get_handler_delegate(request, Refused)
+        return find(request, **kw)
+
+    tornado_app.find_handler = find_handler
+
+
 def serve(path, port: int = 5006, open_browser: bool = True, x=None, y=None, at=None,
-          ready=print) -> None:
+          ready=print, allow_hosts=()) -> None:
     """Serve the app for the map at `path` on http://127.0.0.1:`port`/ until Ctrl-C (which
     raises KeyboardInterrupt). The map and the axes are checked first (InputError); the
-    kernels are compiled (or read from the cache) before the address is printed."""
+    kernels are compiled (or read from the cache) before the address is printed.
+
+    Only requests for Host 127.0.0.1:`port` or localhost:`port` are answered, and websockets
+    only from pages of those origins; `allow_hosts` (HOST:PORT, `host_names`) adds others."""
     require_bokeh()
     from bokeh.application import Application
     from bokeh.application.handlers.function import FunctionHandler
@@ -735,12 +796,14 @@ def serve(path, port: int = 5006, open_browser: bool = True, x=None, y=None, at=
     except (InputError, ValueError):
         pass
     app = Application(FunctionHandler(lambda doc: build_document(doc, ds, path, x, y, at)))
+    hosts = [f"127.0.0.1:{port}", f"localhost:{port}", *allow_hosts]
     try:
         server = Server({"/": app}, port=port, address="127.0.0.1", num_procs=1,
-                        allow_websocket_origin=[f"127.0.0.1:{port}", f"localhost:{port}"])
+                        allow_websocket_origin=hosts)
     except OSError as exc:
         raise RunError(f"cannot listen on 127.0.0.1:{port} ({exc.strerror or exc}): give "
                        "another --port") from None
+    _answer_only(server._tornado, hosts)
     server.start()
     url = f"http://127.0.0.1:{port}/"
     ready(f"ballsurvey explore: serving {path} at {url} (Ctrl-C stops)")
@@ -777,26 +840,27 @@ const F = fields.data, fmt = (v, f) => {
   return (Number(t) == 0 && t[0] == '-') ? t.slice(1) : t;
 };
 const word = (table, v) => (v >= 0 && v < table.length) ? table[v] : '(not written)';
+const esc = (t) => String(t).replace(/[&<>"'`]/g, (c) => `&#${c.charCodeAt(0)};`);
 let rows = '';
 for (const [key, text, units, f] of spec) {
   if (!(key in F)) { continue; }
   const v = F[key][k];
   const shown = key == 'label' ? word(words, v) :
     key == 'corner_kind' ? word(corners, v) : fmt(v, f);
-  rows += `<tr><td>${text}</td><td>${units}</td>` +
-    `<td class='bs-map' data-field='${key}'>${shown}</td></tr>`;
+  rows += `<tr><td>${esc(text)}</td><td>${esc(units)}</td>` +
+    `<td class='bs-map' data-field='${esc(key)}'>${esc(shown)}</td></tr>`;
 }
 const g6 = (v) => String(Number(Number(v).toPrecision(6)));
 let head = '';
 if (kind === 'grid') {
   const i = k % xs.length, j = Math.floor(k / xs.length);
-  head = `${xname} = ${g6(xs[i])} ${xunit}, ${yname} = ${g6(ys[j])} ${yunit}` +
-    (fixed ? ', ' + fixed : '');
+  head = esc(`${xname} = ${g6(xs[i])} ${xunit}, ${yname} = ${g6(ys[j])} ${yunit}` +
+    (fixed ? ', ' + fixed : ''));
 } else {
-  head = F.name[k] + ': ' +
-    launch_keys.map(([c, nm, u]) => `${nm} = ${g6(F[c][k])} ${u}`).join(', ');
+  head = esc(F.name[k] + ': ' +
+    launch_keys.map(([c, nm, u]) => `${nm} = ${g6(F[c][k])} ${u}`).join(', '));
 }
-info.text = `<div class='bs-launch'><h3 style='margin:0'>${word(words, F.label[k])}</h3>` +
+info.text = `<div class='bs-launch'><h3 style='margin:0'>${esc(word(words, F.label[k]))}</h3>` +
   `<p>${head}</p><table><tr><th>field</th><th>units</th><th>map</th></tr>${rows}</table></div>`;
 const c = cyc.data, a = c.start[k], n = c.count[k];
 if (n == 0) { path.data = {x: [], y: []}; start.data = {x: [], y: []}; return; }
@@ -824,6 +888,45 @@ start.data = {x: [x0], y: [y0]};
 """
 
 
+#: the static page's Content-Security-Policy; SCRIPTS: the SHA-256 of each of its own scripts.
+#: Bokeh compiles the page's CustomJS callbacks with `new Function` ('unsafe-eval'); no other
+#: script runs: no inline event handler, no javascript: URL, no script added to the page, nothing
+#: fetched from anywhere.
+CSP = ("default-src 'none'; script-src SCRIPTS 'unsafe-eval'; style-src 'unsafe-inline'; "
+       "img-src data: blob:; font-src data:; base-uri 'none'; form-action 'none'; "
+       "object-src 'none'")
+
+
+def with_csp(page: str) -> str:
+    """A page written by Bokeh's `file_html` with `CSP` as its first element in <head>, naming
+    by hash each inline script the page holds (its data blocks, type application/json, are not
+    scripts)."""
+    import base64
+    import hashlib
+    import re
+
+    hashes = []
+    for attrs, body in re.findall(r"<script\b([^>]*)>(.*?)</script>", page, flags=re.S):
+        kind = re.search(r"""type\s*=\s*["']?([^"' >]+)""", attrs)
+        if kind and kind.group(1).lower() not in ("text/javascript", "module"):
+            continue
+        digest = hashlib.sha256(body.encode("utf-8")).digest()
+        hashes.append(f"'sha256-{base64.b64encode(digest).decode()}'")
+    policy = CSP.replace("SCRIPTS", " ".join(dict.fromkeys(hashes)) or "'none'")
+    at = page.find('<meta charset="utf-8">')
+    head = at + len('<meta charset="utf-8">') if at >= 0 else page.index("<head>") + len("<head>")
+    return (page[:head] + f'\n    <meta http-equiv="Content-Security-Policy" content="{policy}">'
+            + page[head:])
+
+
+def page_steps(view: View, settings: RunSettings) -> int:
+    """Integration steps `precompute_cycles` takes for the launches of a view read into memory
+    (each integrated for CYCLE_SPAN of its stored theta periods, at most the map's T)."""
+    period = np.ravel(view.ds["theta_period_s"].values) if "theta_period_s" in view.ds else []
+    return sum(step_count(min(settings.T, CYCLE_SPAN * p), settings.dt) for p in period
+               if math.isfinite(p) and p > 0)
+
+
 def precompute_cycles(ds: xr.Dataset, view: View, progress=None) -> dict:
     """For each launch k of the view: one theta cycle of its path (integrated again for about
     two theta periods with the map's settings), the turn per cycle (deg) and the cycles to
@@ -837,7 +940,7 @@ def precompute_cycles(ds: xr.Dataset, view: View, progress=None) -> dict:
         period = info["stored"].get("theta_period_s", math.nan)
         cyc = None
         if math.isfinite(period) and period > 0:
-            T = min(settings.T, 2.3 * period)
+            T = min(settings.T, CYCLE_SPAN * period)
             try:
                 traj = integrate_launch(ds, info["launch"], info["ball"], T=T,
                                         n_out=max(200, int(4 * CYCLE_SAMPLES * T / period)),
@@ -880,6 +983,7 @@ def _write_html(ds, path, out, x, y, at, max_paths, progress) -> dict:
     from bokeh.models import ColumnDataSource, CustomJS, Div, TapTool
     from bokeh.resources import INLINE
 
+    s = run_settings(ds)  # a map whose launches cannot be integrated again: refused first
     view = make_view(ds, x, y, at)
     n = ds.sizes["launch"] if view.points else ds.sizes[view.x] * ds.sizes[view.y]
     if n > MAX_HTML_LAUNCHES:
@@ -888,8 +992,9 @@ def _write_html(ds, path, out, x, y, at, max_paths, progress) -> dict:
                          "(without --html), which reads each slice as it is shown")
     fig, parts = _map_figure(view, _title(ds, path))
     fp, _, srcs = _path_figures()
-    with_paths = n <= max_paths
     here = view.loaded()
+    work = page_steps(here, s) if n <= max_paths else 0
+    with_paths = n <= max_paths and work <= MAX_HTML_STEPS
     fields_src = ColumnDataSource(launch_columns(here), name="fields")
     cyc = precompute_cycles(here.ds, here, progress) if with_paths else {
         k: np.zeros(n, np.int32) for k in ("start", "count", "reps")} | {
@@ -901,7 +1006,10 @@ def _write_html(ds, path, out, x, y, at, max_paths, progress) -> dict:
         ", and its path: one theta cycle integrated again with the map's settings, turned about "
         "the orbit centre once per cycle" if with_paths else
         f" (paths are precomputed for slices of at most {max_paths} launches; this one has "
-        f"{n}: `ballsurvey explore` integrates any launch on click)") + ".</p>",
+        f"{n}: `ballsurvey explore` integrates any launch on click)" if n > max_paths else
+        f" (paths are precomputed where they take at most {MAX_HTML_STEPS:.0e} steps in all; "
+        f"this slice's take {work:.2g}: `ballsurvey explore` integrates any launch on click)")
+        + ".</p>",
         width=460, name="launch")
     grid = parts.get("grid", {"xs": [], "ys": []})
     js = CustomJS(args=dict(kind="points" if view.points else "grid",
@@ -919,12 +1027,12 @@ def _write_html(ds, path, out, x, y, at, max_paths, progress) -> dict:
     else:
         fig.js_on_event("tap", js)
     legend = Div(text=_legend(parts))
-    fixed = Div(text=view.fixed_text())
-    s = run_settings(ds)
-    foot = Div(text=f"<p style='font-size:11px'>Map {Path(str(path)).name}: {s.method}, step "
-                    f"{s.dt:g} s, T = {s.T:g} s. Written by ballsurvey explore --html.</p>")
+    fixed = Div(text=_h(view.fixed_text()))
+    foot = Div(text=f"<p style='font-size:11px'>Map {_h(Path(str(path)).name)}: {_h(s.method)}, "
+                    f"step {s.dt:g} s, T = {s.T:g} s. Written by ballsurvey explore --html.</p>",
+               name="footer")
     page = row(column(fig, legend, fixed, foot), column(info, fp))
-    html = file_html(page, INLINE, title=f"ballsurvey: {_title(ds, path)}")
+    text = with_csp(file_html(page, INLINE, title=f"ballsurvey: {_title(ds, path)}"))
     Path(out).parent.mkdir(parents=True, exist_ok=True)
-    Path(out).write_text(html, encoding="utf-8")
+    Path(out).write_text(text, encoding="utf-8")
     return {"launches": n, "paths": with_paths}

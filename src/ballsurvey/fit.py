@@ -324,9 +324,7 @@ def read_track(path, probe_m: float | None = None, units: str | None = None,
 
     import pandas as pd
 
-    p = Path(path)
-    if not p.is_file():
-        raise limits.InputError(f"{path}: no such file")
+    p = limits.regular_file(path, "track (a CSV or Tracker file)")
     for name, u, allowed in (("--units", units, LENGTH_UNITS), ("--time-units", time_units,
                                                                 TIME_UNITS)):
         if u is not None and u not in allowed:

@@ -20,9 +20,10 @@ import xarray as xr
 
 from .axes import LAUNCH_AXES
 from .ball import Ball
-from .classify.labels import CORNER_KINDS, LABELS, Thresholds
+from .classify.labels import CORNER_KINDS, LABELS
 from .compose import METHODS, survey
-from .limits import step_count
+from .integrate.tableaus import FIXED_STEP
+from .limits import replay_steps, step_count, steps
 from .store import decode_label, launches
 
 LAUNCH_KEYS = LAUNCH_AXES + ("chi0_deg",)
@@ -31,30 +32,26 @@ BALL_KEYS = ("a", "c", "M", "A", "B", "g", "cut_height")  #: a map's ball_* attr
 MAX_DRAWN = 20001
 
 
+def _checked(ds: xr.Dataset):
+    """The map's settings by a spec's rules (`sweep.spec.map_settings`; InputError)."""
+    from .sweep.spec import map_settings as checked
+
+    return checked(ds.attrs, str(ds.encoding.get("source", "map")))
+
+
 def map_ball(ds: xr.Dataset) -> Ball:
     """The ball a map was computed with (its global attributes)."""
-    kw = {k: float(ds.attrs[f"ball_{k}"]) for k in BALL_KEYS if f"ball_{k}" in ds.attrs}
-    return Ball(**kw) if kw else Ball.paper()
+    return _checked(ds).ball
 
 
 def map_settings(ds: xr.Dataset) -> dict:
     """The run and classifier settings a map was made with, from its `run_*` and `classify_*`
     attributes (defaults of a spec where a map lacks one): T (s), dt (s, as asked), method, rtol,
     atol, observe_every, cycles (period mode; 0: the whole T) and `thresholds`."""
-    a = ds.attrs
-
-    def num(key, default, kind=float):
-        v = a.get(key)
-        return default if v is None else kind(v)
-
-    known = {f for f in Thresholds().as_dict()}
-    th = Thresholds.from_mapping({k[len("classify_"):]: np.asarray(v).item() for k, v in a.items()
-                                  if k.startswith("classify_") and k[len("classify_"):] in known})
-    return {"T": num("run_T_s", 20.0), "dt": num("run_dt_s_requested", num("run_dt_s", 1e-4)),
-            "method": str(a.get("run_method", "rk4")), "rtol": num("run_rtol", 1e-9),
-            "atol": num("run_atol", 1e-12), "observe_every": num("run_observe_every", 4, int),
-            "cycles": num("run_cycles", 0, int) if a.get("run_mode", "fixed") == "period" else 0,
-            "thresholds": th}
+    m = _checked(ds)
+    return {"T": m.T, "dt": m.dt_requested, "method": m.method, "rtol": m.rtol, "atol": m.atol,
+            "observe_every": m.observe_every, "cycles": m.cycles if m.mode == "period" else 0,
+            "thresholds": m.thresholds}
 
 
 def sample_launches(ds: xr.Dataset, per_label: int = 4, seed: int = 0,
@@ -84,7 +81,7 @@ def sample_launches(ds: xr.Dataset, per_label: int = 4, seed: int = 0,
                 if k in flat:
                     row[k] = float(flat[k].values[i])
             if "corner_kind" in flat:
-                row["corner_kind"] = CORNER_KINDS[int(flat.corner_kind.values[i])]
+                row["corner_kind"] = str(decode_label(flat.corner_kind.values[i], CORNER_KINDS))
             rows.append(row)
     return rows
 
@@ -138,15 +135,18 @@ def draw_gallery(ds: xr.Dataset, out, per_label: int = 4, seed: int = 0, T: floa
 
     from .simulate import simulate
 
-    rows = sample_launches(ds, per_label, seed, labels)
-    if not rows:
-        raise ValueError("the map has no labelled launches")
-    base = ball or map_ball(ds)
     s = map_settings(ds)
     if T is not None:
         s["T"] = float(T)
     if dt is not None:
         s["dt"] = float(dt)
+    steps(s["T"], s["dt"], "--T", "dt")
+    replay_steps(s["T"], s["dt"], s["method"] in FIXED_STEP, "the map's step (attribute "
+                 "run_dt_s_requested)", "gallery integrates launches again")
+    rows = sample_launches(ds, per_label, seed, labels)
+    if not rows:
+        raise ValueError("the map has no labelled launches")
+    base = ball or map_ball(ds)
     for r, again in zip(rows, _label_again(rows, base, s)):
         r["label_again"] = again
     draw_method = s["method"] if s["method"] in METHODS else "dopri5"

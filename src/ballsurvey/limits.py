@@ -14,6 +14,9 @@ import math
 MAX_LAUNCHES = 10**10
 #: most integration steps of one launch (T / dt)
 MAX_STEPS = 10**10
+#: most integration steps of one launch that a command integrates again from a map (explore's
+#: click and static page, gallery): some seconds of one core (about 1.5e6 steps/s with rk4)
+MAX_REPLAY_STEPS = 10**7
 #: longest duration of one launch (s): about 12 days of rolling; far beyond it the kernels'
 #: scaled time overflows (an adaptive method takes no step count to refuse it by)
 MAX_DURATION_S = 1e6
@@ -143,6 +146,17 @@ def steps(T: float, dt: float, name_T: str = "T", name_dt: str = "dt") -> int:
     return step_count(T, dt)
 
 
+def replay_steps(T: float, dt: float, fixed_step: bool, name_dt: str = "dt",
+                 what: str = "a command integrates launches again") -> int:
+    """Steps of a launch a command integrates again from a map (T, dt as checked by `steps`):
+    refused above MAX_REPLAY_STEPS for a fixed-step method (an adaptive one chooses its own)."""
+    n = step_count(T, dt)
+    if fixed_step and n > MAX_REPLAY_STEPS:
+        raise InputError(f"{name_dt}: T/dt = {n:.3g} steps a launch; {what}, each with at "
+                         f"most {MAX_REPLAY_STEPS:.0e} steps (some seconds of one core)")
+    return n
+
+
 def tolerances(rtol, atol, name_rtol: str = "rtol", name_atol: str = "atol") -> tuple:
     """Adaptive tolerances: RTOL_MIN <= rtol <= RTOL_MAX, 0 < atol <= ATOL_MAX."""
     rtol = number(name_rtol, rtol, positive=True)
@@ -249,3 +263,25 @@ def scheduler(addr, name: str = "--scheduler") -> str:
 
 def samples(n, name: str = "n_out") -> int:
     return number(name, n, integer=True, lo=2, hi=MAX_SAMPLES)
+
+
+def regular_file(path, what: str = "file"):
+    """`path` as a Path when it is a regular file (or a link to one); InputError saying what it
+    is otherwise: missing, a folder, a FIFO (opening one would wait for a writer), a device or
+    a socket. Only stat is called: nothing is opened."""
+    import stat
+    from pathlib import Path
+
+    p = Path(path)
+    try:
+        mode = p.stat().st_mode
+    except FileNotFoundError:
+        raise InputError(f"{path}: no such file") from None
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read: {exc.strerror}") from None
+    if stat.S_ISREG(mode):
+        return p
+    kind = ("a folder" if stat.S_ISDIR(mode) else "a FIFO (named pipe)" if stat.S_ISFIFO(mode)
+            else "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode)
+            else "a socket" if stat.S_ISSOCK(mode) else "not a regular file")
+    raise InputError(f"{path} is {kind}, not a {what}")

@@ -123,11 +123,12 @@ def launches(ds):
     return ds.rename({"launch": "_launch"})
 
 
-def decode_label(codes) -> np.ndarray:
-    """int8 label codes -> label words ('' for unwritten cells)."""
+def decode_label(codes, words=LABELS) -> np.ndarray:
+    """int8 label codes -> label words ('' for unwritten cells and codes outside `words`; the
+    corner kinds: words=CORNER_KINDS)."""
     codes = np.asarray(codes)
-    words = np.array(LABELS + ("",), dtype=object)
-    return words[np.where((codes >= 0) & (codes < len(LABELS)), codes, len(LABELS))]
+    table = np.array(tuple(words) + ("",), dtype=object)
+    return table[np.where((codes >= 0) & (codes < len(words)), codes, len(words))]
 
 
 #: most values in one netCDF storage chunk (8 MB of float64)

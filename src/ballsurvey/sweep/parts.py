@@ -307,6 +307,19 @@ def output_is_current(spec: Spec) -> bool:
     return digest == spec.digest and code == code_digest()
 
 
+def _resumable(spec: Spec) -> bool:
+    """Saved parts beside the output that this spec and this code can resume (so a printed
+    --force --resume runs as printed)."""
+    parts = parts_dir(spec.output)
+    if not (parts / MANIFEST).is_file():
+        return False
+    try:
+        _check_manifest(parts, spec)
+    except OutputRefused:
+        return False
+    return True
+
+
 def existing_output(spec: Spec, *, force: bool) -> None:
     """What an existing output means for a run: nothing when there is none or with --force;
     UpToDate when this spec and this code made it; else OutputRefused saying why."""
@@ -317,8 +330,7 @@ def existing_output(spec: Spec, *, force: bool) -> None:
     if digest == spec.digest and code == code_digest():
         raise UpToDate(f"{out} is up to date (made by this spec and this code); --force "
                        "recomputes it")
-    keep = (" (--force --resume keeps the saved parts)"
-            if (parts_dir(out) / MANIFEST).is_file() else "")
+    keep = " (--force --resume keeps the saved parts)" if _resumable(spec) else ""
     if digest is None:
         raise OutputRefused(f"{out} exists and is not a map written by a sweep (no spec digest "
                             f"in it, or not netCDF); use --force to overwrite it{keep}")

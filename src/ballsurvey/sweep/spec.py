@@ -19,7 +19,7 @@ import json
 import math
 import re
 import tomllib
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -204,6 +204,80 @@ def _check_tilts(src, where, theta0_deg, balls_flat_deg):
         _err(src, where, problem)
 
 
+def _count_balls(src, where, sizes: dict) -> None:
+    """Refuse more than `limits.MAX_BALLS` combinations of ball axes (sizes: axis -> count)."""
+    n_balls = math.prod(n for k, n in sizes.items() if k in BALL_AXES)
+    if n_balls > limits.MAX_BALLS:
+        _err(src, f"{where} " + "/".join(k for k in BALL_AXES if k in sizes),
+             f"{n_balls:.3g} balls (combinations of ball axes) is more than "
+             f"{limits.MAX_BALLS:.0e}")
+
+
+def _check_grid(src, where, axes, chi0, base_ball):
+    """A grid's launch values within `limits.LAUNCH_BOUNDS`, every ball its ball axes make
+    within `limits.ball`, and its tilts within the model (axes: name -> values)."""
+    _check_bounds(src, where, {**axes, "chi0_deg": np.array([chi0])})
+    _count_balls(src, where, {k: len(v) for k, v in axes.items()})
+    ball_axes = [k for k in BALL_AXES if k in axes]
+    flat = []
+    for combo in itertools.product(*[axes[k] for k in ball_axes]):
+        try:
+            b = replace(base_ball, **dict(zip(ball_axes, map(float, combo))))
+        except ValueError as exc:
+            _err(src, f"{where} " + "/".join(ball_axes), f"gives an invalid ball: {exc}")
+        _limit(src, limits.ball, b.as_dict(),
+               f"{where} " + "/".join(ball_axes) + " gives a ball whose")
+        flat.append(math.degrees(b.flat_face_theta_rad))
+    _check_tilts(src, f"{where} theta0_deg", axes["theta0_deg"], flat)
+
+
+def _check_points(src, where, points, base_ball):
+    """Named points' launch values within `limits.LAUNCH_BOUNDS` and their tilts in the model."""
+    _check_bounds(src, where, points)
+    _check_tilts(src, f"{where} theta0_deg", points["theta0_deg"],
+                 [math.degrees(base_ball.flat_face_theta_rad)])
+
+
+def _run(src, run: dict, name) -> dict:
+    """The run settings (T, dt, method, rtol, atol, mode, cycles, observe_every) of a spec's [run]
+    table or of a map's attributes, by one set of rules; name(key) is how a message names a key
+    ('[run] T' in a spec, a map's attribute run_T_s). Missing keys take a spec's defaults."""
+    T = _number(src, name("T"), run["T"], positive=True)
+    dt = _number(src, name("dt"), run.get("dt", 1e-4), positive=True)
+    _limit(src, limits.steps, T, dt, name("T"), name("dt"))
+    method = run.get("method", "rk4")
+    if not isinstance(method, str) or method not in MAP_METHODS:
+        _err(src, name("method"), f"unknown method {method!r}; known: {', '.join(MAP_METHODS)}")
+    rtol, atol = _limit(src, limits.tolerances, run.get("rtol", 1e-9), run.get("atol", 1e-12),
+                        name("rtol"), name("atol"))
+    mode = run.get("mode", "full")
+    if not isinstance(mode, str) or mode not in ("full", "period"):
+        _err(src, name("mode"), f"must be 'full' or 'period', got {mode!r}")
+    cycles = _number(src, name("cycles"), run.get("cycles", 2), integer=True, lo=1,
+                     hi=limits.MAX_CYCLES)
+    observe_every = _number(src, name("observe_every"), run.get("observe_every", 4),
+                            integer=True, lo=1, hi=limits.MAX_OBSERVE_EVERY)
+    return {"T": T, "dt": dt, "method": method, "rtol": rtol, "atol": atol, "mode": mode,
+            "cycles": cycles, "observe_every": observe_every}
+
+
+def _thresholds(src, classify: dict, name) -> Thresholds:
+    """Classifier thresholds of a spec's [classify] table or a map's classify_* attributes;
+    name(key) names a key in messages."""
+    for key, (lo, hi) in limits.CLASSIFY_INT_RANGES.items():
+        if key in classify:
+            _number(src, name(key), classify[key], integer=True, lo=lo, hi=hi)
+    known = {f.name for f in fields(Thresholds)}
+    for key, v in classify.items():
+        if key in known and _number(src, name(key), v) < 0:
+            _err(src, name(key), f"must be finite and >= 0, got {v!r}")
+    try:
+        return Thresholds.from_mapping({k: (v.item() if isinstance(v, np.generic) else v)
+                                        for k, v in classify.items()})
+    except ValueError as exc:
+        raise SpecError(f"{src}: {exc}") from None
+
+
 #: [run] keys a command line may set, with the value a spec that does not name them runs with
 RUN_OVERRIDE_DEFAULTS = {"backend": "cpu"}
 
@@ -299,26 +373,11 @@ def load_spec(path, *, text: str | None = None, run: dict | None = None) -> Spec
         # sizes first: no array is made for a grid that is refused for its size
         sizes = [_axis_size(src, f"[launch] {k}", launch[k]) for k in names]
         _limit(src, limits.launches, sizes, "[launch]")
-        ball_axes = [k for k in BALL_AXES if k in launch]
-        n_balls = math.prod(s for k, s in zip(names, sizes) if k in BALL_AXES)
-        if n_balls > limits.MAX_BALLS:
-            _err(src, "[launch] " + "/".join(ball_axes),
-                 f"{n_balls:.3g} balls (combinations of ball axes) is more than "
-                 f"{limits.MAX_BALLS:.0e}")
+        _count_balls(src, "[launch]", dict(zip(names, sizes)))
         for k in names:
             axes[k] = _axis(src, f"[launch] {k}", launch[k])
         chi0 = _number(src, "[launch] chi0_deg", launch.get("chi0_deg", 0.0))
-        _check_bounds(src, "[launch]", {**axes, "chi0_deg": np.array([chi0])})
-        flat = []
-        for combo in itertools.product(*[axes[k] for k in ball_axes]):
-            try:
-                b = replace(base_ball, **dict(zip(ball_axes, map(float, combo))))
-            except ValueError as exc:
-                _err(src, "[launch] " + "/".join(ball_axes), f"gives an invalid ball: {exc}")
-            _limit(src, limits.ball, b.as_dict(),
-                   "[launch] " + "/".join(ball_axes) + " gives a ball whose")
-            flat.append(math.degrees(b.flat_face_theta_rad))
-        _check_tilts(src, "[launch] theta0_deg", axes["theta0_deg"], flat)
+        _check_grid(src, "[launch]", axes, chi0, base_ball)
     else:
         kind = "points"
         pts = doc["points"]
@@ -345,36 +404,22 @@ def load_spec(path, *, text: str | None = None, run: dict | None = None) -> Spec
             _err(src, "[[points]] name", "names must be unique")
         points = {k: np.array(v, dtype=object if k == "name" else float) for k, v in cols.items()}
         points["name"] = np.array(cols["name"], dtype=str)
-        _check_bounds(src, "[[points]]", points)
-        _check_tilts(src, "[[points]] theta0_deg", points["theta0_deg"],
-                     [math.degrees(base_ball.flat_face_theta_rad)])
+        _check_points(src, "[[points]]", points, base_ball)
 
     # ---- run ---------------------------------------------------------------------------------
     run = doc.get("run", {})
     _unknown(src, "[run] ", run, RUN_KEYS)
     if "T" not in run:
         _err(src, "[run] T", "missing (duration in s)")
-    T = _number(src, "[run] T", run["T"], positive=True)
-    dt = _number(src, "[run] dt", run.get("dt", 1e-4), positive=True)
-    _limit(src, limits.steps, T, dt, "[run] T", "[run] dt")
-    method = run.get("method", "rk4")
-    if method not in MAP_METHODS:
-        _err(src, "[run] method", f"unknown method {method!r}; known: {', '.join(MAP_METHODS)}")
-    rtol, atol = _limit(src, limits.tolerances, run.get("rtol", 1e-9), run.get("atol", 1e-12),
-                        "[run] rtol", "[run] atol")
+    r = _run(src, run, lambda k: f"[run] {k}")
+    T, dt, method, rtol, atol = r["T"], r["dt"], r["method"], r["rtol"], r["atol"]
+    mode, cycles, observe_every = r["mode"], r["cycles"], r["observe_every"]
     backend = run.get("backend", RUN_OVERRIDE_DEFAULTS["backend"])
     if backend not in BACKENDS:
         _err(src, "[run] backend", f"must be one of {', '.join(BACKENDS)}, got {backend!r}")
     if backend == "cuda" and method not in FIXED_STEP:
         _err(src, "[run] backend", f"cuda runs the fixed-step methods ({', '.join(FIXED_STEP)}); "
              f"{method} runs on the cpu")
-    mode = run.get("mode", "full")
-    if mode not in ("full", "period"):
-        _err(src, "[run] mode", f"must be 'full' or 'period', got {mode!r}")
-    cycles = _number(src, "[run] cycles", run.get("cycles", 2), integer=True, lo=1,
-                     hi=limits.MAX_CYCLES)
-    observe_every = _number(src, "[run] observe_every", run.get("observe_every", 4),
-                            integer=True, lo=1, hi=limits.MAX_OBSERVE_EVERY)
     block = _number(src, "[run] block", run.get("block", 64), integer=True, lo=1,
                     hi=limits.MAX_BLOCK)
     chunk = _number(src, "[run] chunk", run.get("chunk", DEFAULT_CHUNK[backend]), integer=True,
@@ -383,14 +428,7 @@ def load_spec(path, *, text: str | None = None, run: dict | None = None) -> Spec
              else (len(points["name"]),))
     _limit(src, limits.chunk_plan, shape, chunk, "[run] chunk")
 
-    classify = doc.get("classify", {})
-    for key, (lo, hi) in limits.CLASSIFY_INT_RANGES.items():
-        if key in classify:
-            _number(src, f"[classify] {key}", classify[key], integer=True, lo=lo, hi=hi)
-    try:
-        thresholds = Thresholds.from_mapping(classify)
-    except ValueError as exc:
-        raise SpecError(f"{src}: {exc}") from None
+    thresholds = _thresholds(src, doc.get("classify", {}), lambda k: f"[classify] {k}")
     if mode == "period" and cycles < thresholds.min_cycles:
         _err(src, "[run] cycles", f"period mode integrates {cycles} theta cycle(s), fewer than "
              f"the {thresholds.min_cycles} a label needs ([classify] min_cycles): every launch "
@@ -508,3 +546,130 @@ def ball_from_options(ball: str | None = None, cut_height: float | None = None,
             table = {"a": paper.a, "M": paper.M}
         table["cut_height"] = cut_height
     return _ball("--ball" if ball is not None else "--cut-height", table)
+
+
+# ---------------------------------------------------------------------------------------------
+# a map read back: its run settings, ball, thresholds and axes by the rules of a spec
+#: a map's global attributes that hold its run settings: [run] key -> attribute
+RUN_ATTRS = {"T": "run_T_s", "dt": "run_dt_s", "method": "run_method", "rtol": "run_rtol",
+             "atol": "run_atol", "mode": "run_mode", "cycles": "run_cycles",
+             "observe_every": "run_observe_every"}
+#: run settings a map that records none is integrated again with
+MAP_RUN_DEFAULTS = {"T": 20.0, "dt": 1e-4}
+
+
+@dataclass(frozen=True)
+class MapSettings:
+    """A map's run settings (attributes run_*), classifier thresholds (classify_*) and ball
+    (ball_*), checked by the rules of a spec's [run], [classify] and [ball] tables."""
+
+    T: float  #: duration (s)
+    dt: float  #: step used (s; an adaptive method's first trial step)
+    dt_requested: float  #: the spec's step (s)
+    method: str
+    rtol: float
+    atol: float
+    mode: str
+    cycles: int
+    observe_every: int
+    thresholds: Thresholds
+    ball: Ball
+    recorded: bool  #: the map records its method and step
+
+
+def _attr(k: str) -> str:
+    return f"attribute {k}"
+
+
+def map_settings(attrs: dict, src: str = "map") -> MapSettings:
+    """The run settings, thresholds and ball of a map's global attributes (defaults of a spec
+    where it records none); SpecError (one line naming the file and the attribute) for anything
+    a spec could not hold."""
+    run = {k: attrs[a] for k, a in RUN_ATTRS.items() if a in attrs}
+    r = _run(src, {**MAP_RUN_DEFAULTS, **run}, lambda k: _attr(RUN_ATTRS[k]))
+    req = r["dt"]
+    if "run_dt_s_requested" in attrs:
+        req = _number(src, _attr("run_dt_s_requested"), attrs["run_dt_s_requested"],
+                      positive=True)
+        _limit(src, limits.steps, r["T"], req, _attr("run_T_s"), _attr("run_dt_s_requested"))
+    pre = "classify_"
+    thresholds = _thresholds(src, {k[len(pre):]: v for k, v in attrs.items()
+                                   if k.startswith(pre) and k[len(pre):] in
+                                   {f.name for f in fields(Thresholds)}},
+                             lambda k: _attr(pre + k))
+    kw = {k: _number(src, _attr(f"ball_{k}"), attrs[f"ball_{k}"])
+          for k in BALL_KEYS if k != "preset" and f"ball_{k}" in attrs}
+    try:
+        ball = Ball(**kw)
+    except ValueError as exc:
+        _err(src, "attributes ball_*", str(exc))
+    _limit(src, limits.ball, ball.as_dict(), "attribute ball_*: ball")
+    return MapSettings(T=r["T"], dt=r["dt"], dt_requested=req, method=r["method"],
+                       rtol=r["rtol"], atol=r["atol"], mode=r["mode"], cycles=r["cycles"],
+                       observe_every=r["observe_every"], thresholds=thresholds, ball=ball,
+                       recorded="run_method" in attrs and "run_dt_s" in attrs)
+
+
+def _coordinate(src, ds, k) -> np.ndarray:
+    """A map's coordinate k as finite floats (1-D); SpecError naming it otherwise."""
+    v = ds[k]
+    if v.dtype.kind not in "iuf":
+        _err(src, f"coordinate {k}", f"must be numbers, got {v.dtype}")
+    vals = np.atleast_1d(np.asarray(v.values, dtype=float))
+    if vals.ndim != 1:
+        _err(src, f"coordinate {k}", f"must be one value or an axis, got shape {vals.shape}")
+    if not np.all(np.isfinite(vals)):
+        _err(src, f"coordinate {k}", f"must be finite, got {float(vals[~np.isfinite(vals)][0])!r}")
+    return vals
+
+
+def check_map(ds, src: str = "map") -> MapSettings:
+    """Check an opened map by the rules of a spec before any work: its run settings, thresholds
+    and ball (`map_settings`), its axes (known names, finite, increasing, launch values and
+    tilts within the limits, every ball of its ball axes within `limits.ball`), its label codes
+    (ballsurvey's words) and its result variables (numbers over the label's dimensions).
+    Reads only the coordinates (a points map's launch values), never the results."""
+    from ..classify.labels import LABELS
+
+    settings = map_settings(ds.attrs, src)
+    label = ds["label"]
+    words = str(label.attrs.get("flag_meanings", "")).split()
+    values = label.attrs.get("flag_values", np.arange(len(words)))
+    codes = np.atleast_1d(np.asarray(values))
+    if (codes.dtype.kind not in "iu" or codes.shape != (len(words),)
+            or any(not 0 <= c < len(LABELS) or LABELS[c] != w for c, w in zip(codes, words))):
+        _err(src, "variable label", "its flag_values and flag_meanings are not ballsurvey's "
+             "label codes")
+    for k in RESULT_VARIABLES:
+        if k in ds.variables and k != "label":
+            v = ds[k]
+            if v.dtype.kind not in "iuf" or v.dims != label.dims:
+                _err(src, f"variable {k}", f"must be numbers over {', '.join(label.dims)}, got "
+                     f"{v.dtype} over {', '.join(v.dims) or 'no dimension'}")
+    if label.dims == ("launch",):
+        points = {k: _coordinate(src, ds, k) for k in LAUNCH_AXES + ("chi0_deg",)
+                  if k in ds.variables}
+        n = ds.sizes["launch"]
+        for k, vals in points.items():
+            if vals.shape != (n,):
+                _err(src, f"coordinate {k}", f"must have one value per launch ({n})")
+        if "name" in ds.variables:
+            points["name"] = np.asarray(ds["name"].values).astype(str)
+        _check_points(src, "launch", points, settings.ball)
+        return settings
+    for d in label.dims:
+        if d not in LAUNCH_AXES + BALL_AXES:
+            _err(src, f"dimension {d}", f"not an axis of a map; axes: "
+                 f"{', '.join(LAUNCH_AXES + BALL_AXES)}")
+    _limit(src, limits.launches, label.shape, "map")
+    axes = {}
+    for k in LAUNCH_AXES + BALL_AXES:
+        if k in ds.variables:
+            axes[k] = _coordinate(src, ds, k)
+            if k in label.dims and np.any(np.diff(axes[k]) <= 0):
+                _err(src, f"coordinate {k}", "values must increase along the axis")
+    chi0 = _coordinate(src, ds, "chi0_deg") if "chi0_deg" in ds.variables else np.zeros(1)
+    if chi0.size != 1:
+        _err(src, "coordinate chi0_deg", "must be one value on a grid")
+    _check_grid(src, "coordinate", axes, float(chi0[0]), settings.ball)
+    return settings
