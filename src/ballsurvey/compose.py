@@ -65,6 +65,10 @@ FALLBACK_H_INIT = 1e-3  #: the fixed-frame re-run's first trial step (non-dimens
 #: observer sees each accepted step, and a slow launch (a ball rocking a hair from the upright)
 #: would otherwise take a handful of steps a theta cycle, too few to see its shape
 FALLBACK_H_MAX = 0.1
+#: the fixed-frame fallback runs its launches in parallel (numba threads) from this many on;
+#: fewer run on the calling thread: a handful take a fraction of a second, less than the first
+#: compilation of the parallel driver costs (a few seconds), and the results are the same
+FALLBACK_PARALLEL_MIN = 8
 #: a launch that blew up after its tilt passed this (rad) is taken to have met the Euler chart's
 #: singularity (chidot ~ 1 / cos theta outruns the fixed step), not a step too large
 NEAR_SINGULAR_THETA = math.radians(80.0)
@@ -118,7 +122,8 @@ def fixed_frame_fallback(y0, params, T_nd, res: oc.Result, *, thresholds=Thresho
     their indices."""
     bad = np.flatnonzero(needs_fallback(res, thresholds))
     if bad.size:
-        r2 = _fixed_frame(y0[:, bad], params[:, bad], T_nd, parallel=parallel and bad.size > 1,
+        r2 = _fixed_frame(y0[:, bad], params[:, bad], T_nd,
+                          parallel=parallel and bad.size >= FALLBACK_PARALLEL_MIN,
                           stop_after=stop_after)
         for name in ("obs", "outcome", "t_stop", "formulation", "n_steps"):
             getattr(res, name)[..., bad] = getattr(r2, name)

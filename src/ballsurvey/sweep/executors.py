@@ -26,6 +26,10 @@ DASK_WAIT_S = 30.0
 #: while another finishes a long task), and the fewest launches a task holds
 TASKS_PER_THREAD = 4
 MIN_TASK_LAUNCHES = 64
+#: a map of fewer launch-steps than this (launches x T / dt) runs on the calling thread, with
+#: the serial kernel: it computes in about a second there, less than the first compilation of
+#: the parallel driver costs (a few seconds); the results are the same either way
+SERIAL_WORK = 1e7
 #: how often (s) a wait for a task's result looks at the cluster's health
 POLL_S = 1.0
 
@@ -50,6 +54,12 @@ def task_ranges(chunks: list, todo: list, threads: int, start: dict | None = Non
     return out
 
 
+def parallel_for(spec: Spec) -> bool:
+    """Whether a map is run with the parallel kernels (numba threads): all but small maps
+    (`SERIAL_WORK`) on the CPU."""
+    return spec.backend != "cpu" or spec.n_launches * spec.T / spec.dt >= SERIAL_WORK
+
+
 def run_embedded(spec: Spec, chunks: list, todo: list, finished, *, partials=None,
                  on_unit=None, unlabelled: bool = False) -> None:
     """Chunks `todo` in this process, one after the other; finished(k, result) after each.
@@ -59,10 +69,11 @@ def run_embedded(spec: Spec, chunks: list, todo: list, finished, *, partials=Non
     Ctrl-C raises compute.ChunkInterrupted (with its `chunk`) holding the finished launches."""
     partials = partials or {}
     pace = {}  # the unit size, carried from chunk to chunk
+    parallel = parallel_for(spec)
     for k in todo:
         lo, hi, _ = chunks[k]
         try:
-            result = compute_chunk(spec.text, spec.source, lo, hi, parallel=True,
+            result = compute_chunk(spec.text, spec.source, lo, hi, parallel=parallel,
                                    done=partials.get(k), on_unit=on_unit, spec=spec, pace=pace,
                                    unlabelled=unlabelled)
         except KeyboardInterrupt as exc:
