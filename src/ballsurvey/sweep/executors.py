@@ -10,7 +10,8 @@ import logging
 import time
 from contextlib import contextmanager
 
-from ..compose import TIMES, warm_up
+from ..compose import TIMES, prefetch_fallback, stop_prefetch, warm_up
+from ..integrate.tableaus import FIXED_STEP
 from ..limits import RunError
 from .compute import compute_chunk, concat, n_launches
 from .provenance import code_digest
@@ -61,25 +62,31 @@ def parallel_for(spec: Spec) -> bool:
 
 
 def run_embedded(spec: Spec, chunks: list, todo: list, finished, *, partials=None,
-                 on_unit=None, unlabelled: bool = False) -> None:
+                 on_unit=None, unlabelled: bool = False, parallel: bool | None = None) -> None:
     """Chunks `todo` in this process, one after the other; finished(k, result) after each.
     partials: {k: results of chunk k's first launches} kept from an interrupted run.
     unlabelled: hand `finished` a `compute.Unlabelled` (its labels computed by
     `compute.fields_of`, in finished's time: a background writer's, while the next chunk runs).
+    parallel: the parallel kernels or the serial ones; None: `parallel_for(spec)`.
     Ctrl-C raises compute.ChunkInterrupted (with its `chunk`) holding the finished launches."""
     partials = partials or {}
     pace = {}  # the unit size, carried from chunk to chunk
-    parallel = parallel_for(spec)
-    for k in todo:
-        lo, hi, _ = chunks[k]
-        try:
-            result = compute_chunk(spec.text, spec.source, lo, hi, parallel=parallel,
-                                   done=partials.get(k), on_unit=on_unit, spec=spec, pace=pace,
-                                   unlabelled=unlabelled)
-        except KeyboardInterrupt as exc:
-            exc.chunk = k
-            raise
-        finished(k, result)
+    parallel = parallel_for(spec) if parallel is None else parallel
+    if spec.method in FIXED_STEP and spec.backend == "cpu" and todo:
+        prefetch_fallback(parallel)  # compiled beside the fixed-step kernel where not cached
+    try:
+        for k in todo:
+            lo, hi, _ = chunks[k]
+            try:
+                result = compute_chunk(spec.text, spec.source, lo, hi, parallel=parallel,
+                                       done=partials.get(k), on_unit=on_unit, spec=spec,
+                                       pace=pace, unlabelled=unlabelled)
+            except KeyboardInterrupt as exc:
+                exc.chunk = k
+                raise
+            finished(k, result)
+    finally:
+        stop_prefetch()
 
 
 def _warm_worker() -> str:
