@@ -9,6 +9,8 @@ policy, with the run's thresholds), and what a run's outcome means as a label wo
   time, formulation).
 * `classify`: a Result -> labels and fields (non-dimensional; `units.fields_to_si` makes them SI).
 * `survey`: SI launches -> SI fields (the sweep engine's chunk, `refine`).
+* `prefetch_fallback`: with empty caches, the fixed-frame fallback compiled in a helper process
+  beside a run's own compilation.
 """
 from __future__ import annotations
 
@@ -184,8 +186,9 @@ def prefetch_fallback(parallel: bool) -> None:
         return
     root = str(Path(ballsurvey.__file__).resolve().parent.parent)
     path = os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")]))
+    parallels = (False, True) if parallel else (False,)
     code = ("from ballsurvey.ball import Ball; from ballsurvey.compose import warm_fallback; "
-            f"warm_fallback(Ball.paper().nondim_params(), {(False, True) if parallel else (False,)})")
+            f"warm_fallback(Ball.paper().nondim_params(), {parallels})")
     _HELPER.append(subprocess.Popen([sys.executable, "-c", code],
                                     env=dict(os.environ, PYTHONPATH=path),
                                     stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,

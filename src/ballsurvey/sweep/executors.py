@@ -28,7 +28,7 @@ DASK_WAIT_S = 30.0
 TASKS_PER_THREAD = 4
 MIN_TASK_LAUNCHES = 64
 #: a map of fewer launch-steps than this (launches x T / dt) runs on the calling thread, with
-#: the serial kernel: it computes in about a second there, less than the first compilation of
+#: the serial kernel: it computes in under a second there, less than the first compilation of
 #: the parallel driver costs (a few seconds); the results are the same either way
 SERIAL_WORK = 1e7
 #: how often (s) a wait for a task's result looks at the cluster's health
