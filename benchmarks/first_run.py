@@ -11,7 +11,9 @@ waits for a core), and the seconds the sweep itself reports as compiling kernels
 
 --ref REF: the same, in turns, with a frozen checkout of another git revision (git worktree,
 detached, imported from there by this same Python), so both figures come from one command on
-the same machine; the ratio of the best wall times is printed last. The load average before
+the same machine; the ratio of the best wall times is printed last. --one-thread: also this
+checkout with NUMBA_NUM_THREADS=1, where the fixed-frame fallback is compiled in the run's own
+process after its kernel instead of in a helper process beside it. The load average before
 each run is printed with it: other work on the machine inflates the wall times.
 """
 from __future__ import annotations
@@ -28,11 +30,13 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def first_run(src: Path, spec: Path) -> dict:
-    """One cold `ballsurvey sweep spec -v` importing ballsurvey from src."""
+def first_run(src: Path, spec: Path, threads: int | None = None) -> dict:
+    """One cold `ballsurvey sweep spec -v` importing ballsurvey from src (threads: numba's)."""
     with tempfile.TemporaryDirectory() as tmp:
         env = dict(os.environ, PYTHONPATH=str(src), NUMBA_CACHE_DIR=str(Path(tmp) / "numba"),
                    BALLSURVEY_CACHE_DIR=str(Path(tmp) / "kernels"))
+        if threads:
+            env["NUMBA_NUM_THREADS"] = str(threads)
         load = os.getloadavg()[0]
         r0 = os.times()
         t0 = time.perf_counter()
@@ -53,6 +57,9 @@ def main() -> None:
     ap.add_argument("--spec", default=str(ROOT / "sweeps" / "quick.toml"))
     ap.add_argument("--ref", help="git revision to run the same against")
     ap.add_argument("--rounds", type=int, default=1)
+    ap.add_argument("--one-thread", action="store_true",
+                    help="also this checkout with one numba thread (no helper process: the "
+                         "fallback compiles in the run's own process, after its kernel)")
     args = ap.parse_args()
     spec = Path(args.spec).resolve()
     with tempfile.TemporaryDirectory() as tmp:
@@ -62,12 +69,15 @@ def main() -> None:
             subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "-q",
                             str(base), args.ref], check=True)
             sources = {f"ref {args.ref}": base / "src", **sources}
+        variants = {k: (src, None) for k, src in sources.items()}
+        if args.one_thread:
+            variants["this checkout, 1 thread"] = (ROOT / "src", 1)
         try:
-            runs = {k: [] for k in sources}
+            runs = {k: [] for k in variants}
             for _ in range(args.rounds):
-                for name, src in sources.items():
-                    runs[name].append(r := first_run(src, spec))
-                    print(f"  {name:24s} wall {r['wall']:6.1f} s  cpu {r['cpu']:6.1f} s  "
+                for name, (src, threads) in variants.items():
+                    runs[name].append(r := first_run(src, spec, threads))
+                    print(f"  {name:30s} wall {r['wall']:6.1f} s  cpu {r['cpu']:6.1f} s  "
                           f"compiling {r['compile']:6.1f} s  (load average {r['load']:.1f} "
                           f"before)", flush=True)
         finally:
@@ -78,7 +88,7 @@ def main() -> None:
           f"{os.cpu_count()} cores")
     best = {k: min(v, key=lambda r: r["wall"]) for k, v in runs.items()}
     for name, r in best.items():
-        print(f"  {name:24s} wall {r['wall']:6.1f} s  cpu {r['cpu']:6.1f} s  "
+        print(f"  {name:30s} wall {r['wall']:6.1f} s  cpu {r['cpu']:6.1f} s  "
               f"compiling {r['compile']:6.1f} s")
     if args.ref:
         ref, new = best[f"ref {args.ref}"], best["this checkout"]

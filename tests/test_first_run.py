@@ -2,8 +2,9 @@
 
 * a small map runs the serial kernels (no parallel driver to compile), a large one the parallel
   ones; the file is the same either way;
-* with empty caches, the fixed-frame fallback is compiled by a helper process beside the run's
-  own compilation, and the run then finds it in numba's disk cache (nothing compiled twice);
+* with empty caches and a core to spare, the fixed-frame fallback is compiled by a helper process
+  beside the run's own compilation, and the run then finds it in numba's disk cache (nothing
+  compiled twice);
 * the fallback's kernel is compiled for one signature, whoever calls it (the parallel driver,
   the serial loop, one launch's trajectory).
 """
@@ -67,6 +68,7 @@ class Listener(event.Listener):
         pass
 from ballsurvey import compose
 from ballsurvey.integrate.adaptive import make_kernels
+compose.idle_core = lambda: True  # as on a quiet machine, whatever the load of this one
 mod = make_kernels(compose.OBSERVER)
 before = compose.cached_on_disk(mod.adaptive_one)
 compose.prefetch_fallback(False)

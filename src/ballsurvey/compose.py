@@ -167,19 +167,32 @@ def cached_on_disk(disp) -> bool:
         return True
 
 
+def idle_core() -> bool:
+    """Whether this machine has a core to spare: the load average of the last minute below the
+    cores this process may use, less one (True where it cannot be told)."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+        return os.getloadavg()[0] < cores - 1
+    except (AttributeError, OSError):
+        return True
+
+
 def prefetch_fallback(parallel: bool) -> None:
     """Start compiling the fixed-frame fallback in a helper process when numba's disk cache does
     not hold it (the first run after an install or an edit of the kernels): there it compiles
     on another core while this process compiles the fixed-step kernel, and `fixed_frame_fallback`
     waits for it, then loads the kernels from the disk cache. The fallback is about half of a
     fixed-step map's first compilation (benchmarks/first_run.py). parallel: the parallel
-    fallback too (the serial one is always compiled). Not started with one numba thread (no core
-    to spare); `stop_prefetch` ends a helper whose work the run did not need."""
+    fallback too (the serial one is always compiled). Not started with one numba thread, nor
+    where no core is idle (`idle_core`): there the two compilations would only take turns on
+    the same cores, and the helper's own start and its share of the work (the observer, which
+    both compile) make the run slower; `stop_prefetch` ends a helper whose work the run did not
+    need."""
     import numba
 
     import ballsurvey
 
-    if _HELPER or numba.get_num_threads() < 2:
+    if _HELPER or numba.get_num_threads() < 2 or not idle_core():
         return
     mod = adaptive_kernels(OBSERVER)
     if cached_on_disk(mod.adaptive_one) and (not parallel or cached_on_disk(mod.run_parallel)):
