@@ -144,9 +144,9 @@ def run_map_bench(n: int = 64, T: float = 20.0, dt: float = 1e-4, naive_sample: 
         path.write_text(MAP_SPEC.format(n=n, T=T, dt=dt, out=Path(tmp) / "map.nc"))
         spec = load_spec(path)
         warm = load_spec(path, text=MAP_SPEC.format(n=2, T=dt * 4, dt=dt, out=Path(tmp) / "w.nc"))
-        run_sweep(warm, command="bench warm-up", progress=False)
+        run_sweep(warm, command="bench warm-up", progress=False, parallel=True)
         t = time.perf_counter()
-        run_sweep(spec, command="bench", progress=False)
+        run_sweep(spec, command="bench", progress=False, parallel=True)
         wall = time.perf_counter() - t
     ball = Ball.paper()
     p, tu = ball.nondim_params(), ball.time_unit
@@ -474,12 +474,12 @@ def run_headline(n: int = 100, T: float = 20.0, method: str = "dop853", dt: floa
         spec = load_spec(path)
         warm = load_spec(path, text=headline_spec(2, T=dt * 8, method=method, backend=backend,
                                                   out=Path(tmp) / "w.nc", **run))
-        run_sweep(warm, command="bench warm-up", progress=False)
+        run_sweep(warm, command="bench warm-up", progress=False, parallel=True)
         warm_fallback(Ball.paper().nondim_params())
         TIMES.clear()
         ru0 = resource.getrusage(resource.RUSAGE_SELF)
         t0 = time.perf_counter()
-        run_sweep(spec, command="bench --headline", progress=None, force=True)
+        run_sweep(spec, command="bench --headline", progress=None, force=True, parallel=True)
         wall = time.perf_counter() - t0
         times = dict(TIMES)
         ru1 = resource.getrusage(resource.RUSAGE_SELF)

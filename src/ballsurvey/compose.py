@@ -9,12 +9,18 @@ policy, with the run's thresholds), and what a run's outcome means as a label wo
   time, formulation).
 * `classify`: a Result -> labels and fields (non-dimensional; `units.fields_to_si` makes them SI).
 * `survey`: SI launches -> SI fields (the sweep engine's chunk, `refine`).
+* `prefetch_fallback`: with empty caches, the fixed-frame fallback compiled in a helper process
+  beside a run's own compilation.
 """
 from __future__ import annotations
 
 import math
+import os
+import subprocess
+import sys
 import time
 from collections import Counter
+from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
@@ -26,6 +32,7 @@ from .classify.step_observer import observe_start, observe_step
 from .integrate import ensemble, lanes
 from .integrate import outcome as oc
 from .integrate.adaptive import integrate_adaptive, trajectory_adaptive
+from .integrate.adaptive import make_kernels as adaptive_kernels
 from .integrate.binding import Observer, StepObserver
 from .integrate.tableaus import ADAPTIVE, FIXED_STEP, LANE_ADAPTIVE
 from .units import StepPlan, fields_to_si, launch_state
@@ -65,6 +72,10 @@ FALLBACK_H_INIT = 1e-3  #: the fixed-frame re-run's first trial step (non-dimens
 #: observer sees each accepted step, and a slow launch (a ball rocking a hair from the upright)
 #: would otherwise take a handful of steps a theta cycle, too few to see its shape
 FALLBACK_H_MAX = 0.1
+#: the fixed-frame fallback runs its launches in parallel (numba threads) from this many on;
+#: fewer run on the calling thread: a handful take a fraction of a second, less than the first
+#: compilation of the parallel driver costs (a few seconds), and the results are the same
+FALLBACK_PARALLEL_MIN = 8
 #: a launch that blew up after its tilt passed this (rad) is taken to have met the Euler chart's
 #: singularity (chidot ~ 1 / cos theta outruns the fixed step), not a step too large
 NEAR_SINGULAR_THETA = math.radians(80.0)
@@ -118,7 +129,9 @@ def fixed_frame_fallback(y0, params, T_nd, res: oc.Result, *, thresholds=Thresho
     their indices."""
     bad = np.flatnonzero(needs_fallback(res, thresholds))
     if bad.size:
-        r2 = _fixed_frame(y0[:, bad], params[:, bad], T_nd, parallel=parallel and bad.size > 1,
+        await_prefetch()
+        r2 = _fixed_frame(y0[:, bad], params[:, bad], T_nd,
+                          parallel=parallel and bad.size >= FALLBACK_PARALLEL_MIN,
                           stop_after=stop_after)
         for name in ("obs", "outcome", "t_stop", "formulation", "n_steps"):
             getattr(res, name)[..., bad] = getattr(r2, name)
@@ -126,16 +139,92 @@ def fixed_frame_fallback(y0, params, T_nd, res: oc.Result, *, thresholds=Thresho
     return bad
 
 
-def warm_fallback(params_col) -> None:
+def warm_fallback(params_col, parallels=(True, False)) -> None:
     """Compile (or load from the disk cache) the fixed-frame fallback kernels, parallel and
-    serial, on two short launches: a benchmark's warm-up run rarely has a launch that needs them,
-    and their first compilation would be timed as fallback."""
+    serial (`parallels`), on two short launches: a benchmark's warm-up run rarely has a launch
+    that needs them, and their first compilation would be timed as fallback."""
     from .physics.fast import fast_state
 
     y0 = fast_state(0.0, 0.0, np.radians([10.0, 20.0]), 0.0, 0.0, 0.0, 1.0, -1.0)
     p = np.repeat(np.asarray(params_col, dtype=float).reshape(3, 1), 2, axis=1)
-    for parallel in (True, False):
+    for parallel in parallels:
         _fixed_frame(y0, p, 1e-3, parallel=parallel)
+
+
+#: the helper process compiling the fixed-frame fallback beside this one (`prefetch_fallback`)
+_HELPER: list = []
+#: the longest wait (s) for that helper; past it the fallback is compiled here
+HELPER_WAIT_S = 600.0
+
+
+def cached_on_disk(disp) -> bool:
+    """Whether numba's disk cache holds code of the jitted function `disp` compiled from these
+    sources (its index, read as numba reads it, `_jit.py`); True where that cannot be told (no
+    disk cache, or numba's internals not as expected)."""
+    try:
+        return bool(disp._cache._cache_file._load_index())
+    except (AttributeError, OSError):
+        return True
+
+
+def idle_core() -> bool:
+    """Whether this machine has a core to spare: the load average of the last minute below the
+    cores this process may use, less one (True where it cannot be told)."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+        return os.getloadavg()[0] < cores - 1
+    except (AttributeError, OSError):
+        return True
+
+
+def prefetch_fallback(parallel: bool) -> None:
+    """Start compiling the fixed-frame fallback in a helper process when numba's disk cache does
+    not hold it (the first run after an install or an edit of the kernels): there it compiles
+    on another core while this process compiles the fixed-step kernel, and `fixed_frame_fallback`
+    waits for it, then loads the kernels from the disk cache. The fallback is about half of a
+    fixed-step map's first compilation (benchmarks/first_run.py). parallel: the parallel
+    fallback too (the serial one is always compiled). Not started with one numba thread, nor
+    where no core is idle (`idle_core`): there the two compilations would only take turns on
+    the same cores, and the helper's own start and its share of the work (the observer, which
+    both compile) make the run slower; `stop_prefetch` ends a helper whose work the run did not
+    need."""
+    import numba
+
+    import ballsurvey
+
+    if _HELPER or numba.get_num_threads() < 2 or not idle_core():
+        return
+    mod = adaptive_kernels(OBSERVER)
+    if cached_on_disk(mod.adaptive_one) and (not parallel or cached_on_disk(mod.run_parallel)):
+        return
+    root = str(Path(ballsurvey.__file__).resolve().parent.parent)
+    path = os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")]))
+    parallels = (False, True) if parallel else (False,)
+    code = ("from ballsurvey.ball import Ball; from ballsurvey.compose import warm_fallback; "
+            f"warm_fallback(Ball.paper().nondim_params(), {parallels})")
+    _HELPER.append(subprocess.Popen([sys.executable, "-c", code],
+                                    env=dict(os.environ, PYTHONPATH=path),
+                                    stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                    stderr=subprocess.DEVNULL))
+
+
+def await_prefetch() -> None:
+    """Wait for the helper of `prefetch_fallback`, if one runs (at most HELPER_WAIT_S)."""
+    while _HELPER:
+        helper = _HELPER.pop()
+        try:
+            helper.wait(timeout=HELPER_WAIT_S)
+        except subprocess.TimeoutExpired:
+            helper.kill()
+            helper.wait()
+
+
+def stop_prefetch() -> None:
+    """End the helper of `prefetch_fallback`, if one still runs (its work was not needed)."""
+    while _HELPER:
+        helper = _HELPER.pop()
+        helper.kill()
+        helper.wait()
 
 
 def run_launches(y0, params, plan: StepPlan, method="rk4", *, rtol=1e-9, atol=1e-12, block=64,

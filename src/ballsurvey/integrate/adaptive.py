@@ -21,7 +21,7 @@ import numpy as np
 
 from ..physics.fast import N_FAST
 from .binding import Observer, bind
-from .outcome import EULER_ANGLES, FIXED_FRAME, Result
+from .outcome import EULER_ANGLES, FIXED_FRAME, OK, Result
 from .tableaus import ADAPTIVE, DOPRI5, EmbeddedTableau
 
 __all__ = ["ADAPTIVE", "DOPRI5", "integrate_adaptive", "trajectory_adaptive", "make_kernels"]
@@ -45,6 +45,23 @@ def _tab(tableau):
     return (tableau.a, tableau.b, tableau.b_err, tableau.dense)
 
 
+def run_serial(mod, y0, params, T, tol, tab, obs, fixed_form, max_steps, n_steps, y_end,
+               stop_after, outcome, t_stop) -> None:
+    """`run_parallel`'s work on the calling thread: the kernel module's adaptive_one called from
+    here on each launch (it releases the GIL), with the argument types `run_parallel` gives it,
+    so no serial driver of its own is compiled (each driver compiles adaptive_one into itself
+    again: about a second)."""
+    empty, t_empty = np.empty((0, N_FAST)), np.empty(0)
+    y_last = np.empty(N_FAST)
+    for i in range(y0.shape[1]):
+        n_steps[i], st, t = mod.adaptive_one(
+            np.ascontiguousarray(y0[:, i]), np.ascontiguousarray(params[:, i]), T, tol, tab,
+            obs, i, fixed_form, max_steps, empty, t_empty, t_empty, y_last, stop_after)
+        y_end[:, i] = y_last
+        outcome[i] = st
+        t_stop[i] = t if st != OK else np.nan
+
+
 def integrate_adaptive(y0, params, T, rtol=1e-9, atol=1e-12, *, observer: Observer, n_slots: int,
                        fixed_frame=False, cos_min=1e-3, h_init=1e-3, max_steps=MAX_STEPS,
                        parallel=True, tableau: EmbeddedTableau = DOPRI5, stop_after=0,
@@ -64,11 +81,14 @@ def integrate_adaptive(y0, params, T, rtol=1e-9, atol=1e-12, *, observer: Observ
     outcome = np.zeros(n, dtype=np.int8)
     t_stop = np.full(n, np.nan)
     mod = make_kernels(observer)
-    run = mod.run_parallel if parallel else mod.run_serial
-    run(y0, params, float(T), _tol(tableau, float(rtol), float(atol), float(h_init),
-                                   float(cos_min), float(h_max)),
-        _tab(tableau), obs, bool(fixed_frame), int(max_steps), steps, y_end,
-        int(stop_after), outcome, t_stop)
+    args = (y0, params, float(T), _tol(tableau, float(rtol), float(atol), float(h_init),
+                                       float(cos_min), float(h_max)),
+            _tab(tableau), obs, bool(fixed_frame), int(max_steps), steps, y_end,
+            int(stop_after), outcome, t_stop)
+    if parallel:
+        mod.run_parallel(*args)
+    else:
+        run_serial(mod, *args)
     form = FIXED_FRAME if fixed_frame else EULER_ANGLES
     return Result(obs=obs, outcome=outcome, t_stop=t_stop,
                   formulation=np.full(n, form, dtype=np.int8), y_end=y_end, n_steps=steps,

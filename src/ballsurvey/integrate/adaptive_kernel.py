@@ -124,20 +124,22 @@ def adaptive_one(y0, p, T, tol, tab, obs, i, fixed_form, max_steps, traj, t_rec,
     eo = np.empty(N_FAST)  # the Euler view at an output time
     for q in range(N_FAST):
         ev[q] = y0[q]
+    # `first` is the run-time n_acc == 0 at every record call, never a literal True or False:
+    # numba compiles the observer once per literal value it is called with
+    n_acc = 0
     if fixed_form:
         fixed_from_fast_into(y0, y)
         fixed.rhs(y, p, k[0])
         fast_rhs_into(ev, p, ek)
-        _record_fast(obs, i, True, 0.0, 0.0, ev, ek, p)
+        _record_fast(obs, i, n_acc == 0, 0.0, 0.0, ev, ek, p)
     else:
         for q in range(nv):
             y[q] = y0[q]
         fast_rhs_into(y, p, k[0])
-        _record_fast(obs, i, True, 0.0, 0.0, y, k[0], p)
+        _record_fast(obs, i, n_acc == 0, 0.0, 0.0, y, k[0], p)
     t = 0.0
     h = min(h_init, T, h_max)
     status = OK
-    n_acc = 0
     n_out = t_out.shape[0]
     cap = traj.shape[0] if n_out == 0 else 0
     if cap > 0:
@@ -191,7 +193,7 @@ def adaptive_one(y0, p, T, tol, tab, obs, i, fixed_form, max_steps, traj, t_rec,
                     fast_rhs_into(ev, p, ek)
                     if ev[S_CTH] > VIEW_MIN_COS:
                         psid, fric, normal = fixed.path_kinematics(y, k[0], p[0])
-                        record(obs, i, False, t, h, ev[0], ev[1], ev[2], ev[8], ev[9], ev[3],
+                        record(obs, i, n_acc == 0, t, h, ev[0], ev[1], ev[2], ev[8], ev[9], ev[3],
                                ev[5], ev[6], ev[7], ek[5], ek[6], ek[7], p[0], p[1], p[2],
                                psid, fric, normal)
             else:
@@ -200,7 +202,7 @@ def adaptive_one(y0, p, T, tol, tab, obs, i, fixed_form, max_steps, traj, t_rec,
                     break
                 for q in range(N_FAST):
                     ev[q] = y[q]
-                _record_fast(obs, i, False, t, h, y, k[0], p)
+                _record_fast(obs, i, n_acc == 0, t, h, y, k[0], p)
             if n_acc < cap:
                 for q in range(N_FAST):
                     traj[n_acc, q] = ev[q]
@@ -228,22 +230,16 @@ def adaptive_one(y0, p, T, tol, tab, obs, i, fixed_form, max_steps, traj, t_rec,
 @njit(parallel=True, nogil=True, error_model="numpy", cache=True)  # cached: see ensemble.py
 def run_parallel(y0, params, T, tol, tab, obs, fixed_form, max_steps, n_steps, y_end,
                  stop_after, outcome, t_stop):
+    """adaptive_one on every launch (column) of y0, params, spread over numba's threads. Each
+    launch is handed over as adaptive_one is called from Python (`adaptive.run_serial`, one
+    launch's trajectory): contiguous columns and a signed index, so one compilation of it serves
+    all three."""
     for i in nb.prange(y0.shape[1]):
         empty, t_empty = np.empty((0, N_FAST)), np.empty(0)
-        n_steps[i], st, t = adaptive_one(y0[:, i], params[:, i], T, tol, tab, obs, i,
-                                         fixed_form, max_steps, empty, t_empty, t_empty,
-                                         y_end[:, i], stop_after)
-        outcome[i] = st
-        t_stop[i] = t if st != OK else math.nan
-
-
-@jit
-def run_serial(y0, params, T, tol, tab, obs, fixed_form, max_steps, n_steps, y_end,
-               stop_after, outcome, t_stop):
-    empty, t_empty = np.empty((0, N_FAST)), np.empty(0)
-    for i in range(y0.shape[1]):
-        n_steps[i], st, t = adaptive_one(y0[:, i], params[:, i], T, tol, tab, obs, i,
-                                         fixed_form, max_steps, empty, t_empty, t_empty,
-                                         y_end[:, i], stop_after)
+        y_last = np.empty(N_FAST)
+        n_steps[i], st, t = adaptive_one(y0[:, i].copy(), params[:, i].copy(), T, tol, tab, obs,
+                                         np.int64(i), fixed_form, max_steps, empty, t_empty,
+                                         t_empty, y_last, stop_after)
+        y_end[:, i] = y_last
         outcome[i] = st
         t_stop[i] = t if st != OK else math.nan

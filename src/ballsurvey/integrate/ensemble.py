@@ -215,16 +215,6 @@ def run_parallel(y0, params, dt, n_steps, block, cos_min, observer_on, observe_e
                   observe_every, obs, traj, stride, y_end, stop_after, outcome, t_stop)
 
 
-def run_serial(y0, params, dt, n_steps, block, cos_min, observer_on, observe_every, obs, traj,
-               stride, y_end, stop_after, outcome, t_stop):
-    n = y0.shape[1]
-    nblocks = (n + block - 1) // block
-    for bi in range(nblocks):
-        lo = bi * block
-        run_block(y0, params, dt, n_steps, lo, min(n, lo + block), cos_min, observer_on,
-                  observe_every, obs, traj, stride, y_end, stop_after, outcome, t_stop)
-
-
 def run_parallel_refill(y0, params, dt, n_steps, block, groups, cos_min, observe_every, obs,
                         y_end, stop_after, outcome, t_stop):
     n = y0.shape[1]
@@ -235,11 +225,6 @@ def run_parallel_refill(y0, params, dt, n_steps, block, groups, cos_min, observe
             run_refill(y0, params, dt, n_steps, lo, min(n, lo + size), block, cos_min,
                        observe_every, obs, y_end, stop_after, outcome, t_stop)
 
-
-def run_serial_refill(y0, params, dt, n_steps, block, groups, cos_min, observe_every, obs,
-                      y_end, stop_after, outcome, t_stop):
-    run_refill(y0, params, dt, n_steps, 0, y0.shape[1], block, cos_min, observe_every, obs,
-               y_end, stop_after, outcome, t_stop)
 '''
 
 
@@ -263,9 +248,7 @@ def _kernel_module_source(method: str) -> str:
     # cached with the package's digest-stamped cache (_jit.py), like the functions they inline
     cached = "\n@njit(nogil=True, error_model='numpy', cache=True)"
     body = body.replace("\ndef run_block(", cached + "\ndef run_block(")
-    body = body.replace("\ndef run_serial(", cached + "\ndef run_serial(")
     body = body.replace("\ndef run_refill(", cached + "\ndef run_refill(")
-    body = body.replace("\ndef run_serial_refill(", cached + "\ndef run_serial_refill(")
     body = body.replace("\ndef run_parallel_refill(",
                         "\n@njit(parallel=True, nogil=True, error_model='numpy', cache=True)"
                         "\ndef run_parallel_refill(")
@@ -286,7 +269,8 @@ def kernel_module_source(method: str) -> str:
 
 @cache
 def make_kernels(method: str, observer: Observer):
-    """(run_parallel, run_serial) for a fixed-step method named in FIXED_STEP, fed `observer`.
+    """(run_parallel, run_block, run_parallel_refill, run_refill) for a fixed-step method named
+    in FIXED_STEP, fed `observer`.
 
     The kernel source is generated from the tableau and bound to the observer by
     `binding.bind`: a module file in the cache directory named by a hash of its text, of the
@@ -294,12 +278,15 @@ def make_kernels(method: str, observer: Observer):
     classify/ and the versions), so numba can cache the compiled block kernel across processes,
     and an edit to any function the kernel inlines (euler.py, the observer, ...) gives a new module
     instead of a stale one; its cached functions are also stamped with that digest (see
-    `ballsurvey._jit`). run_parallel spreads blocks over numba's threads (prange); run_serial runs
-    the same blocks on the calling thread with the GIL released (for dask workers, which must not
-    nest parallel kernels). Both call the same block kernel, so their results are identical.
+    `ballsurvey._jit`). run_parallel spreads blocks over numba's threads (prange); `integrate`
+    runs the same blocks on the calling thread (for dask workers, which must not nest parallel
+    kernels) by calling run_block from Python, block after block, with the GIL released: a
+    jitted serial driver would cost a compilation of its own (numba compiles a callee into each
+    caller again; about a second). Both run the same block kernel, so their results are
+    identical; likewise run_parallel_refill and run_refill (one group) in period mode.
     """
     mod = bind(f"rk_{method}", kernel_module_source(method), observer, inline_record=True)
-    return mod.run_parallel, mod.run_serial, mod.run_parallel_refill, mod.run_serial_refill
+    return mod.run_parallel, mod.run_block, mod.run_parallel_refill, mod.run_refill
 
 
 def refill_groups(n: int, lanes: int, parallel: bool) -> int:
@@ -338,22 +325,30 @@ def integrate(y0, params, dt, n_steps, method="rk4", *, observer: Observer, n_sl
     y_end = np.empty_like(y0)
     outcome = np.zeros(n, dtype=np.int8)
     t_stop = np.full(n, np.nan)
-    par, ser, par_refill, ser_refill = make_kernels(method, observer)
+    par, run_block, par_refill, run_refill = make_kernels(method, observer)
+    block = int(block)
     if stop_after > 0 and n_rec == 0 and n_slots > 0 and n > 0:
         # period mode: lanes refill from a queue (`run_refill`); groups of launches spread
         # over the threads, several per thread so that none waits long for another
-        groups = refill_groups(n, block, parallel)
-        (par_refill if parallel else ser_refill)(
-            y0, params, float(dt), int(n_steps), int(block), int(groups), float(cos_min),
-            max(1, int(observe_every)), obs, y_end, int(stop_after), outcome, t_stop)
+        args = (float(cos_min), max(1, int(observe_every)), obs, y_end, int(stop_after),
+                outcome, t_stop)
+        if parallel:
+            par_refill(y0, params, float(dt), int(n_steps), block,
+                       refill_groups(n, block, parallel), *args)
+        else:
+            run_refill(y0, params, float(dt), int(n_steps), 0, n, block, *args)
         return Result(obs=obs[:n_slots], outcome=outcome, t_stop=t_stop,
                       formulation=np.full(n, EULER_ANGLES, dtype=np.int8), y_end=y_end,
                       n_steps=np.full(n, int(n_steps), dtype=np.int64), t=np.empty(0),
                       traj=traj)
-    run = par if parallel else ser
     stride = max(1, int(stride))
-    run(y0, params, float(dt), int(n_steps), int(block), float(cos_min), n_slots > 0,
-        max(1, int(observe_every)), obs, traj, stride, y_end, int(stop_after), outcome, t_stop)
+    args = (float(cos_min), n_slots > 0, max(1, int(observe_every)), obs, traj, stride, y_end,
+            int(stop_after), outcome, t_stop)
+    if parallel:
+        par(y0, params, float(dt), int(n_steps), block, *args)
+    else:
+        for lo in range(0, n, block):
+            run_block(y0, params, float(dt), int(n_steps), lo, min(n, lo + block), *args)
     return Result(obs=obs[:n_slots], outcome=outcome, t_stop=t_stop,
                   formulation=np.full(n, EULER_ANGLES, dtype=np.int8), y_end=y_end,
                   n_steps=np.full(n, int(n_steps), dtype=np.int64),

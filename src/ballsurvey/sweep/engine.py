@@ -249,7 +249,8 @@ class _PartWriter:
 
 def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=None,
               progress: bool | None = None, command: str = "", on_chunk=None, notice=None,
-              dask_wait_s: float = DASK_WAIT_S, on_unit=None, report: dict | None = None) -> Path:
+              dask_wait_s: float = DASK_WAIT_S, on_unit=None, report: dict | None = None,
+              parallel: bool | None = None) -> Path:
     """Run (or continue) a sweep and write its netCDF file. `client`: a dask.distributed Client.
 
     progress: a progress bar on stderr (default: when stderr is a terminal); on_unit(done, total):
@@ -257,7 +258,8 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
     k is saved; notice(line): what the run has to say (compiling, parts computed again); report:
     a dict filled with 'wall_s', 'compile_s', 'computed' (launches computed by this run) and
     'resumed' (launches taken from an earlier run); on dask also `run_dask`'s account of the
-    workers' time.
+    workers' time. parallel: in this process, run the parallel kernels (numba threads) or the
+    serial ones; None: as `executors.parallel_for` decides (serial for a small map).
 
     One writer per output: the run holds `<output>.lock` for its whole life; a second run on the
     same output is refused (OutputBusy). On resume the recorded chunk plan is used and parts are
@@ -372,7 +374,7 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
             with compile_watch(say) as compiling:
                 if client is None:
                     run_embedded(spec, chunks, todo, finished_behind, partials=partials,
-                                 on_unit=advance_and_check, unlabelled=True)
+                                 on_unit=advance_and_check, unlabelled=True, parallel=parallel)
                     settle()
                 else:
                     run_dask(client, spec, chunks, todo, finished, dask_wait_s,

@@ -10,7 +10,8 @@ import logging
 import time
 from contextlib import contextmanager
 
-from ..compose import TIMES, warm_up
+from ..compose import TIMES, prefetch_fallback, stop_prefetch, warm_up
+from ..integrate.tableaus import FIXED_STEP
 from ..limits import RunError
 from .compute import compute_chunk, concat, n_launches
 from .provenance import code_digest
@@ -26,6 +27,10 @@ DASK_WAIT_S = 30.0
 #: while another finishes a long task), and the fewest launches a task holds
 TASKS_PER_THREAD = 4
 MIN_TASK_LAUNCHES = 64
+#: a map of fewer launch-steps than this (launches x T / dt) runs on the calling thread, with
+#: the serial kernel: it computes in under a second there, less than the first compilation of
+#: the parallel driver costs (a few seconds); the results are the same either way
+SERIAL_WORK = 1e7
 #: how often (s) a wait for a task's result looks at the cluster's health
 POLL_S = 1.0
 
@@ -50,25 +55,38 @@ def task_ranges(chunks: list, todo: list, threads: int, start: dict | None = Non
     return out
 
 
+def parallel_for(spec: Spec) -> bool:
+    """Whether a map is run with the parallel kernels (numba threads): all but small maps
+    (`SERIAL_WORK`) on the CPU."""
+    return spec.backend != "cpu" or spec.n_launches * spec.T / spec.dt >= SERIAL_WORK
+
+
 def run_embedded(spec: Spec, chunks: list, todo: list, finished, *, partials=None,
-                 on_unit=None, unlabelled: bool = False) -> None:
+                 on_unit=None, unlabelled: bool = False, parallel: bool | None = None) -> None:
     """Chunks `todo` in this process, one after the other; finished(k, result) after each.
     partials: {k: results of chunk k's first launches} kept from an interrupted run.
     unlabelled: hand `finished` a `compute.Unlabelled` (its labels computed by
     `compute.fields_of`, in finished's time: a background writer's, while the next chunk runs).
+    parallel: the parallel kernels or the serial ones; None: `parallel_for(spec)`.
     Ctrl-C raises compute.ChunkInterrupted (with its `chunk`) holding the finished launches."""
     partials = partials or {}
     pace = {}  # the unit size, carried from chunk to chunk
-    for k in todo:
-        lo, hi, _ = chunks[k]
-        try:
-            result = compute_chunk(spec.text, spec.source, lo, hi, parallel=True,
-                                   done=partials.get(k), on_unit=on_unit, spec=spec, pace=pace,
-                                   unlabelled=unlabelled)
-        except KeyboardInterrupt as exc:
-            exc.chunk = k
-            raise
-        finished(k, result)
+    parallel = parallel_for(spec) if parallel is None else parallel
+    if spec.method in FIXED_STEP and spec.backend == "cpu" and todo:
+        prefetch_fallback(parallel)  # compiled beside the fixed-step kernel where not cached
+    try:
+        for k in todo:
+            lo, hi, _ = chunks[k]
+            try:
+                result = compute_chunk(spec.text, spec.source, lo, hi, parallel=parallel,
+                                       done=partials.get(k), on_unit=on_unit, spec=spec,
+                                       pace=pace, unlabelled=unlabelled)
+            except KeyboardInterrupt as exc:
+                exc.chunk = k
+                raise
+            finished(k, result)
+    finally:
+        stop_prefetch()
 
 
 def _warm_worker() -> str:
