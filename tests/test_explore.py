@@ -384,6 +384,9 @@ def test_static_page_in_a_browser_draws_the_precomputed_path(maps, browser, tmp_
     assert main(["explore", str(maps / "grid.nc"), "--html", str(out)]) == 0
     html = out.read_text()
     assert "cdn.bokeh.org" not in html and "<script src=" not in html  # works offline
+    # the page draws whole cycles from a theta maximum, the app from the launch point: each
+    # names its black triangle
+    assert "first theta maximum (whole cycles drawn from here)" in html
     browser.get(out.as_uri())
     _wait(lambda: browser.execute_script(_READY), what="the static page")
     _click(browser, "map", CLICK["theta0_deg"], CLICK["chidot0"])
@@ -419,3 +422,12 @@ def test_points_map_page_in_a_browser(maps, browser, tmp_path):
 
         assert cells["map label"] == LABELS[int(ds.label.values[i])]
         assert cells["map n_sides"] == f"{float(ds.n_sides.values[i]):.4f}"
+
+
+def test_the_legend_says_where_an_exact_curve_runs_through_another_label():
+    from ballsurvey.explore import legend_html
+
+    text = legend_html([0, 3], {4.0: ([0.0], [0.0])}, {4.0: ["circle"]})
+    assert "exact square (n = 4) (also through circle: n=4 there, but the path reads as circle)" \
+        in text
+    assert "also through" not in legend_html([0, 3], {4.0: ([0.0], [0.0])})
