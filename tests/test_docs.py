@@ -102,7 +102,8 @@ def test_equations_are_math_served_with_the_site(site):
 
 def test_equations_render_in_a_browser(site):
     """Headless Chromium typesets physics.html's equations from the local MathJax (file://, no
-    network): rendered, none in error."""
+    network): rendered, none in error, and every displayed equation keeps its size on a phone-
+    wide window (it scrolls sideways, not shrinks to nothing)."""
     import shutil
     import time
 
@@ -114,7 +115,8 @@ def test_equations_render_in_a_browser(site):
     from selenium.webdriver.chrome.service import Service
 
     opts = webdriver.ChromeOptions()
-    for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage"):
+    for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+              "--window-size=420,900"):
         opts.add_argument(a)
     opts.binary_location = chrome
     d = webdriver.Chrome(options=opts, service=Service(driver))
@@ -126,6 +128,10 @@ def test_equations_render_in_a_browser(site):
             time.sleep(0.2)
         assert d.execute_script(count) >= 40
         assert d.execute_script("return document.querySelectorAll('mjx-merror').length") == 0
+        widths = d.execute_script(
+            "return Array.from(document.querySelectorAll('div.arithmatex mjx-container > svg'))"
+            ".map(s => s.getBoundingClientRect().width)")
+        assert len(widths) >= 15 and min(widths) > 20, widths
     finally:
         d.quit()
 
