@@ -104,22 +104,11 @@ def test_equations_render_in_a_browser(site):
     """Headless Chromium typesets physics.html's equations from the local MathJax (file://, no
     network): rendered, none in error, and every displayed equation keeps its size on a phone-
     wide window (it scrolls sideways, not shrinks to nothing)."""
-    import shutil
     import time
 
-    chrome = shutil.which("chromium") or shutil.which("google-chrome")
-    driver = shutil.which("chromedriver")
-    if not (chrome and driver):
-        pytest.skip("no headless browser: chromium and chromedriver not found")
-    webdriver = pytest.importorskip("selenium.webdriver")
-    from selenium.webdriver.chrome.service import Service
+    from conftest import headless_chromium
 
-    opts = webdriver.ChromeOptions()
-    for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-              "--window-size=420,900"):
-        opts.add_argument(a)
-    opts.binary_location = chrome
-    d = webdriver.Chrome(options=opts, service=Service(driver))
+    d = headless_chromium("420,900")
     try:
         d.get((site / "physics.html").as_uri())
         count = "return document.querySelectorAll('mjx-container').length"

@@ -4,8 +4,6 @@ found). Maps are tiny sweeps made here: 4 x 5 x 2 launches and three named point
 import csv
 import io
 import math
-import os
-import shutil
 import signal
 import socket
 import subprocess
@@ -272,30 +270,11 @@ def test_help_states_the_static_pages_path_limit():
 
 # ---------------------------------------------------------------------------------------------
 # in a real browser
-def _browser_paths():
-    chrome = next((shutil.which(n) for n in ("chromium", "chromium-browser", "google-chrome")
-                   if shutil.which(n)), None)
-    driver = shutil.which("chromedriver") or next(
-        (p for p in ("/usr/lib/chromium/chromedriver", "/usr/bin/chromedriver")
-         if os.path.exists(p)), None)
-    return chrome, driver
-
-
 @pytest.fixture(scope="module")
 def browser(tmp_path_factory):
-    chrome, driver = _browser_paths()
-    if not (chrome and driver):
-        pytest.skip("no headless browser: chromium and chromedriver not found (Debian: apt-get "
-                    "install chromium chromium-driver)")
-    webdriver = pytest.importorskip("selenium.webdriver")
-    from selenium.webdriver.chrome.service import Service
+    from conftest import headless_chromium
 
-    opts = webdriver.ChromeOptions()
-    for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-              "--window-size=1250,1000"):
-        opts.add_argument(a)
-    opts.binary_location = chrome
-    d = webdriver.Chrome(options=opts, service=Service(driver))
+    d = headless_chromium()
     d.downloads = tmp_path_factory.mktemp("downloads")
     d.execute_cdp_cmd("Page.setDownloadBehavior", {"behavior": "allow",
                                                    "downloadPath": str(d.downloads)})

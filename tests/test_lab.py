@@ -263,6 +263,11 @@ def test_animate_frames_are_the_pictures_matplotlib_saves_and_explain_the_spot(t
         assert differ.mean() < 1e-4, (k, differ.mean())
     # the frames move: the ball is drawn where it is, not once
     assert np.any(fast[0] != fast[10])
+    # and no two tick labels run into each other
+    renderer = anim._fig.canvas.get_renderer()
+    for axis in [a for ax in anim._fig.axes for a in (ax.xaxis, ax.yaxis)]:
+        boxes = [t.get_window_extent(renderer) for t in axis.get_ticklabels() if t.get_text()]
+        assert not any(b1.overlaps(b2) for i, b1 in enumerate(boxes) for b2 in boxes[i + 1:])
 
 
 def test_animate_pipes_its_frames_to_ffmpeg_for_an_mp4(tmp_path, monkeypatch):

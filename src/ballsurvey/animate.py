@@ -105,6 +105,7 @@ def _scene(ds: xr.Dataset, ball: Ball, fps: float, speed: float, probe_m: float 
     artist to frame f, and the moving artists of each axes (drawn again on every frame)."""
     from matplotlib.figure import Figure
     from matplotlib.patches import Polygon
+    from matplotlib.ticker import MaxNLocator
 
     probe_m = float(ds.attrs.get("probe_m", 0.0254)) if probe_m is None else probe_m
     idx = frame_indices(ds, fps, speed)
@@ -125,6 +126,9 @@ def _scene(ds: xr.Dataset, ball: Ball, fps: float, speed: float, probe_m: float 
     side.set_title("from the side (looking along +y)", fontsize=10)
     side.set_xlim(-2.2 * a, 2.2 * a)
     side.set_ylim(-0.1 * a, 2 * a + probe_m + 0.2 * a)
+    for axv in (top, side):  # few enough ticks that labels such as -0.075 never collide
+        axv.xaxis.set_major_locator(MaxNLocator(nbins=5))
+        axv.yaxis.set_major_locator(MaxNLocator(nbins=6))
     table = side.axhline(0.0, color="0.3", lw=1.5)
     path_line, = top.plot([], [], color="tab:red", lw=1.2, label="centre of mass")
     tip_line, = top.plot([], [], color="0.2", lw=0.6, label="probe tip")
