@@ -63,3 +63,28 @@ dt = 2e-4
 [output]
 file = "big.nc"
 """
+
+
+def headless_chromium(window: str = "1250,1000"):
+    """A headless Chromium driven by selenium (Debian's chromium and chromedriver), at `window`
+    pixels ("width,height"); skips the test, saying why, where there is none."""
+    import os
+    import shutil
+
+    chrome = next((shutil.which(n) for n in ("chromium", "chromium-browser", "google-chrome")
+                   if shutil.which(n)), None)
+    driver = shutil.which("chromedriver") or next(
+        (p for p in ("/usr/lib/chromium/chromedriver", "/usr/bin/chromedriver")
+         if os.path.exists(p)), None)
+    if not (chrome and driver):
+        pytest.skip("no headless browser: chromium and chromedriver not found (Debian: apt-get "
+                    "install chromium chromium-driver)")
+    webdriver = pytest.importorskip("selenium.webdriver")
+    from selenium.webdriver.chrome.service import Service
+
+    opts = webdriver.ChromeOptions()
+    for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+              f"--window-size={window}"):
+        opts.add_argument(a)
+    opts.binary_location = chrome
+    return webdriver.Chrome(options=opts, service=Service(driver))

@@ -12,15 +12,22 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def test_site_builds_strictly(tmp_path):
+@pytest.fixture(scope="module")
+def site(tmp_path_factory):
+    """The site, built strictly (offline: nothing is fetched)."""
     pytest.importorskip("mkdocs", reason="mkdocs is not installed (pip install -e '.[docs]')")
     pytest.importorskip("mkdocstrings", reason="mkdocstrings is not installed")
+    out = tmp_path_factory.mktemp("docs") / "site"
     env = dict(os.environ, NO_MKDOCS_2_WARNING="1")
     run = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir",
-                          str(tmp_path / "site")], cwd=ROOT, env=env, capture_output=True,
-                         text=True, timeout=300)
+                          str(out)], cwd=ROOT, env=env, capture_output=True, text=True,
+                         timeout=300)
     assert run.returncode == 0, run.stderr[-3000:]
-    api = (tmp_path / "site" / "api.html").read_text()
+    return out
+
+
+def test_site_builds_strictly(site):
+    api = (site / "api.html").read_text()
     for name in ("simulate.simulate", "api.sweep", "api.open_map", "api.query",
                  "api.BallsurveyAccessor.to_dataframe", "classify.labels.Thresholds"):
         assert f'id="ballsurvey.{name}"' in api, name
@@ -77,3 +84,48 @@ def test_every_label_word_is_explained_in_the_readme_and_the_api_page():
     for word in LABELS:
         assert f"`{word}`" in readme, word
         assert f"`{word}`" in api, word
+
+
+def test_equations_are_math_served_with_the_site(site):
+    """physics.md's equations reach the page as TeX for MathJax (pymdownx.arithmatex), and every
+    script a page loads is the site's own: no CDN, so the site reads offline."""
+    html = (site / "physics.html").read_text()
+    assert html.count('class="arithmatex"') >= 40
+    assert "\\ddot\\theta" in html and "\\frac" in html
+    for page in site.glob("*.html"):
+        scripts = re.findall(r'<script[^>]* src="([^"]+)"', page.read_text())
+        assert scripts and not [s for s in scripts if re.match(r"[a-z]+:|//", s)], page.name
+    mathjax = site / "javascripts" / "mathjax" / "tex-svg-full.js"
+    assert mathjax.stat().st_size > 1_000_000
+    assert 'src="javascripts/mathjax/tex-svg-full.js"' in html
+
+
+def test_equations_render_in_a_browser(site):
+    """Headless Chromium typesets physics.html's equations from the local MathJax (file://, no
+    network): rendered, none in error, and every displayed equation keeps its size on a phone-
+    wide window (it scrolls sideways, not shrinks to nothing)."""
+    import time
+
+    from conftest import headless_chromium
+
+    d = headless_chromium("420,900")
+    try:
+        d.get((site / "physics.html").as_uri())
+        count = "return document.querySelectorAll('mjx-container').length"
+        deadline = time.monotonic() + 60
+        while d.execute_script(count) < 40 and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert d.execute_script(count) >= 40
+        assert d.execute_script("return document.querySelectorAll('mjx-merror').length") == 0
+        widths = d.execute_script(
+            "return Array.from(document.querySelectorAll('div.arithmatex mjx-container > svg'))"
+            ".map(s => s.getBoundingClientRect().width)")
+        assert len(widths) >= 15 and min(widths) > 20, widths
+    finally:
+        d.quit()
+
+
+def test_no_count_that_goes_stale_is_written_by_hand():
+    """How many tests there are is a command's answer, not a number in the docs."""
+    for page in [ROOT / "README.md", *(ROOT / "docs").glob("*.md")]:
+        assert not re.search(r"\b\d+ tests\b", page.read_text()), page.name

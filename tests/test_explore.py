@@ -4,8 +4,6 @@ found). Maps are tiny sweeps made here: 4 x 5 x 2 launches and three named point
 import csv
 import io
 import math
-import os
-import shutil
 import signal
 import socket
 import subprocess
@@ -272,30 +270,11 @@ def test_help_states_the_static_pages_path_limit():
 
 # ---------------------------------------------------------------------------------------------
 # in a real browser
-def _browser_paths():
-    chrome = next((shutil.which(n) for n in ("chromium", "chromium-browser", "google-chrome")
-                   if shutil.which(n)), None)
-    driver = shutil.which("chromedriver") or next(
-        (p for p in ("/usr/lib/chromium/chromedriver", "/usr/bin/chromedriver")
-         if os.path.exists(p)), None)
-    return chrome, driver
-
-
 @pytest.fixture(scope="module")
 def browser(tmp_path_factory):
-    chrome, driver = _browser_paths()
-    if not (chrome and driver):
-        pytest.skip("no headless browser: chromium and chromedriver not found (Debian: apt-get "
-                    "install chromium chromium-driver)")
-    webdriver = pytest.importorskip("selenium.webdriver")
-    from selenium.webdriver.chrome.service import Service
+    from conftest import headless_chromium
 
-    opts = webdriver.ChromeOptions()
-    for a in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
-              "--window-size=1250,1000"):
-        opts.add_argument(a)
-    opts.binary_location = chrome
-    d = webdriver.Chrome(options=opts, service=Service(driver))
+    d = headless_chromium()
     d.downloads = tmp_path_factory.mktemp("downloads")
     d.execute_cdp_cmd("Page.setDownloadBehavior", {"behavior": "allow",
                                                    "downloadPath": str(d.downloads)})
@@ -384,6 +363,9 @@ def test_static_page_in_a_browser_draws_the_precomputed_path(maps, browser, tmp_
     assert main(["explore", str(maps / "grid.nc"), "--html", str(out)]) == 0
     html = out.read_text()
     assert "cdn.bokeh.org" not in html and "<script src=" not in html  # works offline
+    # the page draws whole cycles from a theta maximum, the app from the launch point: each
+    # names its black triangle
+    assert "first theta maximum (whole cycles drawn from here)" in html
     browser.get(out.as_uri())
     _wait(lambda: browser.execute_script(_READY), what="the static page")
     _click(browser, "map", CLICK["theta0_deg"], CLICK["chidot0"])
@@ -419,3 +401,12 @@ def test_points_map_page_in_a_browser(maps, browser, tmp_path):
 
         assert cells["map label"] == LABELS[int(ds.label.values[i])]
         assert cells["map n_sides"] == f"{float(ds.n_sides.values[i]):.4f}"
+
+
+def test_the_legend_says_where_an_exact_curve_runs_through_another_label():
+    from ballsurvey.explore import legend_html
+
+    text = legend_html([0, 3], {4.0: ([0.0], [0.0])}, {4.0: ["circle"]})
+    assert "exact square (n = 4) (also through circle: n=4 there, but the path reads as circle)" \
+        in text
+    assert "also through" not in legend_html([0, 3], {4.0: ([0.0], [0.0])})

@@ -87,3 +87,28 @@ def test_find_cli_reports_roots_that_are_not_the_shape():
     lines = r.stdout.splitlines()
     assert lines[0].startswith("chidot0 = 3.7503") and "square" in lines[0]
     assert all(ln.startswith("not a solution") for ln in lines[1:])
+
+
+@pytest.mark.parametrize("launch, whole_turns", [((-5.0, 0.0, 4.05, -3.0), 1),
+                                                 ((-10.0, 0.0, 2.3, -2.5), 0),
+                                                 ((-8.0, 0.0, -2.0, 0.0), -1)])
+def test_turn_per_cycle_is_the_paths_turn_and_chi_changes_by_it_plus_whole_turns(launch,
+                                                                                  whole_turns):
+    """The classifier's turn per cycle is the path's heading turn folded into (-180, 180]; chi
+    itself (integrated, read between successive theta minima) changes by the quadrature's
+    chi_change_per_cycle_deg, which is that turn plus whole turns (+360 deg for Fig. 12a's square,
+    -360 for the pentagram)."""
+    import ballsurvey
+    from ballsurvey.quadrature import launch_cycle
+
+    q = launch_cycle(*launch)
+    ds = ballsurvey.simulate(*launch, T=3.0, n_out=30001)
+    th, chi = ds.theta.values, ds.chi.values
+    k = np.nonzero((th[1:-1] < th[:-2]) & (th[1:-1] <= th[2:]))[0] + 1  # theta minima
+    chi_changes = np.degrees(np.diff(chi[k]))
+    assert len(chi_changes) >= 3
+    assert np.allclose(chi_changes, q["chi_change_per_cycle_deg"], atol=0.1), chi_changes
+    assert abs(ds.attrs["turn_per_cycle_deg"] - q["turn_per_cycle_deg"]) < 0.05
+    assert -180 < ds.attrs["turn_per_cycle_deg"] <= 180
+    assert q["chi_change_per_cycle_deg"] - q["turn_per_cycle_deg"] == pytest.approx(
+        360.0 * whole_turns, abs=1e-9)

@@ -2,11 +2,13 @@
 rotations of the truncated ball's geometry, the fixed-frame integration, the steady circle's closed
 forms (Eqs. 32-40) and finite differences of the integrated motion (M dv/dt = F, dL/dt = tau)."""
 import math
+import os
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+import ballsurvey
 from ballsurvey.simulate import simulate
 from ballsurvey.synthetic import fixed_frame_states
 
@@ -236,3 +238,55 @@ def test_find_with_another_ball_solves_for_that_ball(capsys):
     for r in roots:  # each closes a square with that ball, judged by integration here
         a = simulate(-5.0, 0.0, r, -3.0, T=20.0, ball=other, method="dopri5", rtol=1e-10).attrs
         assert a["label"] == "square" and abs(a["n_sides"] - 4) < 1e-3
+
+
+def test_animate_frames_are_the_pictures_matplotlib_saves_and_explain_the_spot(tmp_path):
+    """write_animation's frames (background drawn once, moving parts drawn onto it) against the
+    same animation saved by matplotlib's PillowWriter (every frame drawn whole by savefig)."""
+    from matplotlib.animation import PillowWriter
+
+    from ballsurvey import animate
+
+    ds = ballsurvey.simulate(-5.0, 0.0, 4.05, -3.0, T=0.3, n_out=301)
+    writer = PillowWriter(fps=10)
+    anim = animate.animation(ds, fps=10, speed=0.3)
+    labels = [t.get_text() for leg in anim._fig.legends for t in leg.get_texts()]
+    assert any("spot" in s and "spin" in s for s in labels), labels
+    assert any("centre of mass" in s for s in labels), labels
+    anim.save(tmp_path / "a.gif", writer=writer, dpi=animate.DPI)
+    whole = [np.asarray(im, dtype=int) for im in writer._frames]
+    fast = [np.asarray(f, dtype=int)[..., :3].copy()
+            for f in animate.frames(ds, fps=10, speed=0.3)]
+    assert len(whole) == len(fast) == 11
+    for k in (0, 5, 10):
+        differ = np.any(whole[k] != fast[k], axis=-1)
+        assert differ.mean() < 1e-4, (k, differ.mean())
+    # the frames move: the ball is drawn where it is, not once
+    assert np.any(fast[0] != fast[10])
+    # and no two tick labels run into each other
+    renderer = anim._fig.canvas.get_renderer()
+    for axis in [a for ax in anim._fig.axes for a in (ax.xaxis, ax.yaxis)]:
+        boxes = [t.get_window_extent(renderer) for t in axis.get_ticklabels() if t.get_text()]
+        assert not any(b1.overlaps(b2) for i, b1 in enumerate(boxes) for b2 in boxes[i + 1:])
+
+
+def test_animate_pipes_its_frames_to_ffmpeg_for_an_mp4(tmp_path, monkeypatch):
+    """An .mp4 is the raw RGBA frames piped to ffmpeg (a stand-in here that keeps the bytes)."""
+    import matplotlib
+
+    from ballsurvey import animate
+
+    fake = tmp_path / "bin" / "ffmpeg"
+    fake.parent.mkdir()
+    fake.write_text(f"#!/bin/sh\nfor last; do :; done\ncat > \"$last\"\necho \"$@\" > "
+                    f"{tmp_path}/args\n")
+    fake.chmod(0o755)
+    monkeypatch.setenv("PATH", f"{fake.parent}:{os.environ['PATH']}")
+    monkeypatch.setitem(matplotlib.rcParams, "animation.ffmpeg_path", str(fake))
+    ds = ballsurvey.simulate(-5.0, 0.0, 4.05, -3.0, T=0.3, n_out=61)
+    out = animate.write_animation(ds, tmp_path / "ball.mp4", fps=10, speed=1)
+    h, w = 416, 800
+    assert out.stat().st_size == 4 * h * w * 4  # 4 frames of 800 x 416 RGBA
+    args = (tmp_path / "args").read_text().split()
+    assert args[args.index("-s") + 1] == f"{w}x{h}" and args[args.index("-pix_fmt") + 1] == "rgba"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["args", "ball.mp4", "bin"]

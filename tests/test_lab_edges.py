@@ -64,16 +64,17 @@ def test_a_full_disk_names_the_file(tmp_path, capsys):
 
 
 def test_an_interrupted_animation_leaves_no_file(tmp_path, monkeypatch):
-    from matplotlib.animation import FuncAnimation
-
     from ballsurvey import animate
 
     ds = ballsurvey.simulate(-5.0, 0.0, 4.05, -3.0, T=0.3, n_out=61)
+    drawn = animate.frames
 
-    def interrupted(self, filename, *a, **kw):  # Ctrl-C once some frames are written
-        open(filename, "wb").write(b"GIF89a")
+    def interrupted(*a, **kw):  # Ctrl-C once some frames are drawn and the file begun
+        pictures = drawn(*a, **kw)
+        yield next(pictures)
+        open(tmp_path / ".cc.partial.gif", "wb").write(b"GIF89a")
         raise KeyboardInterrupt
-    monkeypatch.setattr(FuncAnimation, "save", interrupted)
+    monkeypatch.setattr(animate, "frames", interrupted)
     with pytest.raises(KeyboardInterrupt):
         animate.write_animation(ds, tmp_path / "cc.gif")
     assert sorted(p.name for p in tmp_path.iterdir()) == []

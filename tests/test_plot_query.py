@@ -170,3 +170,73 @@ def test_gallery_draws_every_label_again(small_map, tmp_path):
     # integrated again from the stored launch with the same step: the same label
     assert all(r["label_again"] == r["label"] for r in rows)
     assert_real_png(out)
+
+
+def _ticks_overlap(fig, axis):
+    renderer = fig.canvas.get_renderer()
+    boxes = [t.get_window_extent(renderer) for t in axis.get_ticklabels()
+             if t.get_visible() and t.get_text()]
+    return any(a.overlaps(b) for i, a in enumerate(boxes) for b in boxes[i + 1:])
+
+
+def test_path_figures_say_what_the_lines_are_and_keep_a_constant_apart():
+    """Fig. 4's steady circle: theta constant is named (no colour bar of its rounding), the
+    constant |F_h|/N and N are named with their values and drawn apart (not on top of each
+    other); the square's path has a theta colour bar, the centre of mass in its legend, and x
+    tick labels that do not run into each other."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from ballsurvey.plot import path_figure
+
+    steady = simulate(24.0, 0.0, -3.23, -10.2126, T=4.0, n_out=2001)
+    fig = path_figure(steady, show=("face", "probe"))
+    FigureCanvasAgg(fig).draw()
+    path_ax = fig.axes[0]
+    texts = [t.get_text() for t in path_ax.get_legend().get_texts()]
+    assert any(s.startswith("centre of mass") and "24.00 deg throughout" in s for s in texts)
+    assert not any(ax.get_label() == "<colorbar>" for ax in fig.axes)
+    ratio_ax = next(ax for ax in fig.axes if "F_h" in ax.get_ylabel())
+    normal_ax = next(ax for ax in fig.axes if ax.get_ylabel().startswith("N (N)"))
+    legend = [t.get_text() for t in ratio_ax.get_legend().get_texts()]
+    assert "throughout" in legend[0] and "throughout" in legend[1]
+    y_ratio = ratio_ax.transData.transform((1.0, ratio_ax.lines[0].get_ydata().mean()))[1]
+    y_normal = normal_ax.transData.transform((1.0, normal_ax.lines[0].get_ydata().mean()))[1]
+    assert abs(y_ratio - y_normal) > 0.25 * ratio_ax.bbox.height  # apart, not on top
+    assert normal_ax.lines[0].get_marker() == "o"  # told apart wherever they meet
+
+    square = simulate(-5.0, 0.0, 4.05, -3.0, T=6.0)
+    for panels in ("path", "all"):
+        fig = path_figure(square, panels=panels)
+        FigureCanvasAgg(fig).draw()
+        assert any(ax.get_label() == "<colorbar>" for ax in fig.axes)
+        texts = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+        assert any(s.startswith("centre of mass (colour") for s in texts), texts
+        assert not _ticks_overlap(fig, fig.axes[0].xaxis), panels
+
+
+def test_a_map_says_where_an_exact_square_runs_through_circle():
+    """An exact-square curve (n_sides = 4) that runs through cells labelled circle (rounded
+    squares within 5 % of a circle) is named so in the map's legend; one that runs only
+    through squares is not."""
+    import xarray as xr
+
+    from ballsurvey.classify.labels import CODE
+    from ballsurvey.plot import curve_crossings, map_figure
+
+    th, ch = np.linspace(0, 10, 6), np.linspace(3.0, 5.0, 9)
+    ns = np.broadcast_to(np.linspace(3.2, 4.8, 9)[None, :], (6, 9)).copy()  # (theta0, chidot0)
+    lab = np.full((6, 9), CODE["square"], np.int8)
+    lab[3:, :] = CODE["circle"]  # the larger theta0: rounded squares read as circles
+    ds = xr.Dataset({"label": (("theta0_deg", "chidot0"), lab),
+                     "n_sides": (("theta0_deg", "chidot0"), ns)},
+                    coords={"theta0_deg": th, "chidot0": ch})
+    assert curve_crossings(ns.T, lab.T) == {4.0: ["circle"]}
+    fig = map_figure(ds, x="theta0_deg", y="chidot0")
+    texts = [t.get_text() for leg in fig.legends for t in leg.get_texts()]
+    square = next(s for s in texts if s.startswith("exact square"))
+    assert "also through circle" in square.replace("\n", " ")
+    lab[:] = CODE["square"]
+    ds["label"] = (("theta0_deg", "chidot0"), lab)
+    texts = [t.get_text() for leg in map_figure(ds, x="theta0_deg", y="chidot0").legends
+             for t in leg.get_texts()]
+    assert not any("also through" in s for s in texts)

@@ -15,7 +15,7 @@ import numpy as np
 import xarray as xr
 
 from .ball import Ball
-from .limits import InputError
+from .limits import InputError, RunError
 
 #: frames per second of the file, and motion seconds per playback second (0.5: half speed)
 FPS = 20
@@ -24,6 +24,8 @@ SPEED = 0.5
 MAX_FRAMES = 5000
 #: rim points drawn for the flat face and the outline
 N_RIM = 48
+#: dots per inch of the written frames (800 x 416 pixels)
+DPI = 80
 
 
 def check_output(out) -> Path:
@@ -97,21 +99,19 @@ def silhouette(geo: dict, view: np.ndarray, dims, ball: Ball, off=None) -> np.nd
     return pts[ConvexHull(pts).vertices]
 
 
-def animation(ds: xr.Dataset, ball: Ball | None = None, fps: float = FPS, speed: float = SPEED,
-              probe_m: float | None = None):
-    """A matplotlib FuncAnimation of a `simulate` Dataset: top view (x, y) with the path traced
-    and the ball at true scale, side view (x, z) following the ball. In a notebook:
-    ``IPython.display.HTML(animation(ds).to_jshtml())``."""
-    from matplotlib.animation import FuncAnimation
+def _scene(ds: xr.Dataset, ball: Ball, fps: float, speed: float, probe_m: float | None,
+           dpi: float = DPI):
+    """The animation's figure, its frames' sample indices, a `draw(f)` that sets every moving
+    artist to frame f, and the moving artists of each axes (drawn again on every frame)."""
     from matplotlib.figure import Figure
     from matplotlib.patches import Polygon
+    from matplotlib.ticker import MaxNLocator
 
-    ball = ball or Ball.paper()
     probe_m = float(ds.attrs.get("probe_m", 0.0254)) if probe_m is None else probe_m
     idx = frame_indices(ds, fps, speed)
     a = ball.a
     x, y = ds.x.values, ds.y.values
-    fig = Figure(figsize=(10, 5.2), layout="constrained")
+    fig = Figure(figsize=(10, 5.2), dpi=dpi, layout="constrained")
     top, side = fig.subplots(1, 2, width_ratios=[1.3, 1])
     pad = a + probe_m
     top.set_xlim(x.min() - pad, x.max() + pad)
@@ -126,10 +126,12 @@ def animation(ds: xr.Dataset, ball: Ball | None = None, fps: float = FPS, speed:
     side.set_title("from the side (looking along +y)", fontsize=10)
     side.set_xlim(-2.2 * a, 2.2 * a)
     side.set_ylim(-0.1 * a, 2 * a + probe_m + 0.2 * a)
-    side.axhline(0.0, color="0.3", lw=1.5)
+    for axv in (top, side):  # few enough ticks that labels such as -0.075 never collide
+        axv.xaxis.set_major_locator(MaxNLocator(nbins=5))
+        axv.yaxis.set_major_locator(MaxNLocator(nbins=6))
+    table = side.axhline(0.0, color="0.3", lw=1.5)
     path_line, = top.plot([], [], color="tab:red", lw=1.2, label="centre of mass")
     tip_line, = top.plot([], [], color="0.2", lw=0.6, label="probe tip")
-    top.legend(loc="upper right", fontsize=8)
     art = {}
     for name, axv, (i, j) in (("top", top, (0, 1)), ("side", side, (0, 2))):
         art[name] = dict(
@@ -140,6 +142,12 @@ def animation(ds: xr.Dataset, ball: Ball | None = None, fps: float = FPS, speed:
             probe=axv.plot([], [], color="k", lw=2)[0],
             spot=axv.plot([], [], "o", color="tab:blue", ms=5)[0],
             g=axv.plot([], [], "+", color="tab:red", ms=8)[0], dims=(i, j))
+    # below the axes, clear of the path: what each mark is (the spot shows the spin about the
+    # ball's axis; faint where it is on the far side)
+    fig.legend(handles=[path_line, tip_line, art["top"]["g"], art["top"]["spot"]],
+               labels=["path of the centre of mass", "path of the probe's tip",
+                       "centre of mass G", "spot on the equator: turns with the spin"],
+               loc="outside lower center", ncols=4, fontsize=8, frameon=False)
     time_text = top.text(0.02, 0.97, "", transform=top.transAxes, va="top", fontsize=9)
     views = {"top": np.array([0.0, 0.0, 1.0]), "side": np.array([0.0, -1.0, 0.0])}
 
@@ -182,23 +190,108 @@ def animation(ds: xr.Dataset, ball: Ball | None = None, fps: float = FPS, speed:
     fig.suptitle(f"{lab}: theta0 = {ds.attrs.get('theta0_deg')} deg, chidot0 = "
                  f"{ds.attrs.get('chidot0')}, phidot0 = {ds.attrs.get('phidot0')} rad/s "
                  f"({speed:g}x speed)", fontsize=10)
+    moving = {top: [path_line, tip_line, time_text], side: [table]}
+    for name, axv in (("top", top), ("side", side)):
+        moving[axv] += [v for k, v in art[name].items() if k != "dims"]
+    for artists in moving.values():  # the layout is the still parts'
+        for artist in artists:
+            artist.set_in_layout(False)
+    _settle(fig)
+    return fig, idx, draw, moving
+
+
+def _settle(fig) -> None:
+    """Lay `fig` out once for all its frames: constrained layout with equal-aspect axes moves the
+    axes a little at each drawing until it settles (a few drawings); drawn until it has, then
+    frozen, so the axes stand still from the first frame to the last."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = FigureCanvasAgg(fig)
+    before = None
+    for _ in range(12):
+        canvas.draw()
+        now = np.array([ax.get_position().bounds for ax in fig.axes])
+        if before is not None and np.abs(now - before).max() < 1e-5:
+            break
+        before = now
+    fig.set_layout_engine("none")
+
+
+def animation(ds: xr.Dataset, ball: Ball | None = None, fps: float = FPS, speed: float = SPEED,
+              probe_m: float | None = None):
+    """A matplotlib FuncAnimation of a `simulate` Dataset: top view (x, y) with the path traced
+    and the ball at true scale, side view (x, z) following the ball. In a notebook:
+    ``IPython.display.HTML(animation(ds).to_jshtml())``. (`write_animation` draws the same
+    frames faster: it draws the still parts once.)"""
+    from matplotlib.animation import FuncAnimation
+
+    fig, idx, draw, _ = _scene(ds, ball or Ball.paper(), fps, speed, probe_m)
     return FuncAnimation(fig, draw, frames=len(idx), interval=1000.0 / fps, blit=False)
+
+
+def frames(ds: xr.Dataset, ball: Ball | None = None, fps: float = FPS, speed: float = SPEED,
+           probe_m: float | None = None, dpi: float = DPI):
+    """The animation's frames as RGBA arrays (height, width, 4), the same pictures as
+    `animation` saved at `dpi`, drawn faster: the figure is drawn once without its moving parts,
+    and each frame puts that background back and draws only the moving parts (the ball, the
+    paths and the clock), each axes' in their stacking order. The array is the canvas's buffer,
+    overwritten by the next frame."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    fig, idx, draw, moving = _scene(ds, ball or Ball.paper(), fps, speed, probe_m, dpi)
+    canvas = FigureCanvasAgg(fig)
+    for artists in moving.values():
+        for artist in artists:
+            artist.set_animated(True)
+    canvas.draw()
+    background = canvas.copy_from_bbox(fig.bbox)
+    for f in range(len(idx)):
+        draw(f)
+        canvas.restore_region(background)
+        for axv, artists in moving.items():
+            for artist in sorted(artists, key=lambda art: art.get_zorder()):
+                axv.draw_artist(artist)
+        yield np.asarray(canvas.buffer_rgba())
 
 
 def write_animation(ds: xr.Dataset, out, ball: Ball | None = None, fps: float = FPS,
                     speed: float = SPEED, probe_m: float | None = None) -> Path:
-    """Write `animation` to out (.gif with Pillow, .mp4 with ffmpeg); returns the path."""
-    from matplotlib.animation import FFMpegWriter, PillowWriter
+    """Write the animation's `frames` to out (.gif with Pillow, .mp4 with ffmpeg, as
+    matplotlib's PillowWriter and FFMpegWriter write them); returns the path."""
+    import subprocess
+
+    from matplotlib import rcParams
+    from PIL import Image
 
     p = check_output(out)
-    anim = animation(ds, ball, fps, speed, probe_m)
-    writer = PillowWriter(fps=fps) if p.suffix.lower() == ".gif" else FFMpegWriter(fps=fps)
     p.parent.mkdir(parents=True, exist_ok=True)
     # written beside the target and renamed when whole: a Ctrl-C or a full disk leaves no
     # truncated file that looks like an animation
     tmp = p.with_name(f".{p.stem}.partial{p.suffix}")
     try:
-        anim.save(tmp, writer=writer, dpi=80)
+        pictures = frames(ds, ball, fps, speed, probe_m)
+        if p.suffix.lower() == ".gif":
+            shots = [Image.fromarray(rgba, "RGBA").convert("RGB") for rgba in pictures]
+            shots[0].save(tmp, format="GIF", save_all=True, append_images=shots[1:],
+                          duration=int(1000 / fps), loop=0)
+        else:
+            first = next(pictures)
+            h, w = first.shape[:2]
+            cmd = [rcParams["animation.ffmpeg_path"], "-f", "rawvideo", "-vcodec", "rawvideo",
+                   "-s", f"{w}x{h}", "-pix_fmt", "rgba", "-framerate", str(fps), "-loglevel",
+                   "error", "-i", "pipe:", "-vcodec", "h264", "-pix_fmt", "yuv420p", "-y",
+                   "-f", "mp4", str(tmp)]
+            with subprocess.Popen(cmd, stdin=subprocess.PIPE, stderr=subprocess.PIPE) as proc:
+                try:
+                    proc.stdin.write(first.tobytes())
+                    for rgba in pictures:
+                        proc.stdin.write(rgba.tobytes())
+                finally:
+                    proc.stdin.close()
+                    err = proc.stderr.read().decode(errors="replace").strip()
+                    if proc.wait() != 0:
+                        raise RunError(f"ffmpeg failed writing {p}: "
+                                       f"{err.splitlines()[-1] if err else proc.returncode}")
         os.replace(tmp, p)
     finally:
         tmp.unlink(missing_ok=True)

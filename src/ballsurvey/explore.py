@@ -43,6 +43,8 @@ from .plot import (
     EXACT_POLYGON_DASH,
     EXACT_POLYGON_LEVELS,
     LABEL_COLOURS,
+    crossing_text,
+    curve_crossings,
     drawn_axes,
     exact_polygon_field,
 )
@@ -408,8 +410,10 @@ def grid_images(view: View) -> dict:
         curves = {float(lv): (np.asarray(lx), np.asarray(ly))
                   for lv, lx, ly in zip(lines.levels, lines.xs, lines.ys) if len(lx)}
     present = sorted({int(v) for v in np.unique(lab[np.isfinite(lab)])})
+    crossings = {} if ns is None else curve_crossings(ns, p.label.transpose(view.y,
+                                                                            view.x).values)
     return {"images": images, "edges": (x0, x1, y0, y1), "curves": curves, "present": present,
-            "xs": xs, "ys": ys}
+            "xs": xs, "ys": ys, "crossings": crossings}
 
 
 def point_columns(view: View) -> dict:
@@ -490,15 +494,17 @@ def launch_columns(view: View) -> dict:
     return cols
 
 
-def legend_html(present, curves=()) -> str:
+def legend_html(present, curves=(), crossings=None) -> str:
     """The map's legend: a swatch per label code in `present`, and the exact-polygon curves
-    drawn (`curves`: their n_sides levels)."""
+    drawn (`curves`: their n_sides levels), with the other labels each runs through
+    (`crossings`, from `plot.curve_crossings`)."""
     items = "".join(
         f"<span style='display:inline-block;margin-right:10px'><span style='display:inline-block;"
         f"width:12px;height:12px;background:{LABEL_COLOURS[LABELS[c]]};border:1px solid #666;"
         f"vertical-align:middle'></span> {LABELS[c].replace('_', '-')}</span>" for c in present)
-    lines = [text for lv, text in ((4.0, "solid line: exact square (n = 4)"),
-                                   (3.0, "dashed line: exact triangle (n = 3)")) if lv in curves]
+    lines = [text + (f" ({crossing_text(lv, crossings[lv])})" if lv in (crossings or {}) else "")
+             for lv, text in ((4.0, "solid line: exact square (n = 4)"),
+                              (3.0, "dashed line: exact triangle (n = 3)")) if lv in curves]
     if lines:
         items += f"<span>&nbsp;{', '.join(lines)}</span>"
     return f"<div style='font-size:12px'>{items}</div>"
@@ -570,10 +576,12 @@ def _legend(parts: dict) -> str:
     if "points" in parts:
         words = parts["points"].data["label"]
         return legend_html(sorted({LABELS.index(w) for w in words if w in LABELS}))
-    return legend_html(parts["grid"]["present"], parts["grid"]["curves"])
+    return legend_html(parts["grid"]["present"], parts["grid"]["curves"],
+                       parts["grid"].get("crossings"))
 
 
-def _path_figures():
+def _path_figures(start_text="launch point"):
+    """The path and theta(t) figures; `start_text` names the black triangle."""
     from bokeh.models import ColumnDataSource
     from bokeh.plotting import figure
 
@@ -584,7 +592,10 @@ def _path_figures():
                 x_axis_label="x (m)", y_axis_label="y (m)", tools="pan,wheel_zoom,reset,save",
                 name="path_figure")
     fp.line("x", "y", source=path, color="#4477aa", line_width=1.5)
-    fp.scatter("x", "y", source=start, marker="triangle", size=10, color="black")
+    fp.scatter("x", "y", source=start, marker="triangle", size=10, color="black",
+               legend_label=start_text)
+    fp.add_layout(fp.legend[0], "below")  # under the plot, clear of the path
+    fp.legend.label_text_font_size = "9pt"
     ft = figure(width=440, height=200, title="tilt theta(t)", x_axis_label="t (s)",
                 y_axis_label="theta (deg)", tools="pan,wheel_zoom,reset,save")
     ft.line("t", "theta", source=theta, color="black")
@@ -685,7 +696,7 @@ def build_document(doc, ds: xr.Dataset, path, x=None, y=None, at=None) -> None:
             for lv, src in parts["lines"].items():
                 lx, ly = g["curves"].get(lv, ([], []))
                 src.data = {"x": lx, "y": ly}
-            legend.text = legend_html(g["present"], g["curves"])
+            legend.text = legend_html(g["present"], g["curves"], g["crossings"])
             fixed.text = _h(view.fixed_text())
         fig.xaxis.axis_label, fig.yaxis.axis_label = axis_text(view.x), axis_text(view.y)
         parts["marker"].data = {"x": [], "y": []}
@@ -991,7 +1002,8 @@ def _write_html(ds, path, out, x, y, at, max_paths, progress) -> dict:
                          f"{MAX_HTML_LAUNCHES}: draw shorter axes (--x, --y) or use the app "
                          "(without --html), which reads each slice as it is shown")
     fig, parts = _map_figure(view, _title(ds, path))
-    fp, _, srcs = _path_figures()
+    # the page draws whole theta cycles, from the first theta maximum (not the launch point)
+    fp, _, srcs = _path_figures("first theta maximum (whole cycles drawn from here)")
     here = view.loaded()
     work = page_steps(here, s) if n <= max_paths else 0
     with_paths = n <= max_paths and work <= MAX_HTML_STEPS

@@ -7,6 +7,7 @@ notebooks; `plot_map` and `plot_path` return the file written.
 from __future__ import annotations
 
 import math
+import textwrap
 
 import numpy as np
 import xarray as xr
@@ -37,6 +38,9 @@ AXIS_TEXT = {k: ax.plot_label for k, ax in AXES.items()}
 FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
 #: the words for corner kinds printed beside a polygon or star (other shapes print none: a
 #: circle, a line or a rosette has no corners to speak of)
+#: a path whose theta varies less than this (deg) is drawn in one colour, its theta named
+STEADY_THETA_DEG = 0.5
+STEADY_COLOUR = "#21918c"  # viridis at its middle
 CORNER_WORDS = {"rounded": "rounded corners", "cusp": "cusped corners",
                 "loop": "looped corners"}
 
@@ -168,6 +172,8 @@ def drawn_axes(ds: xr.Dataset, x: str | None = None, y: str | None = None,
 EXACT_POLYGON_LEVELS = (3.0, 4.0)
 #: how each curve is drawn, by `plot` and `explore` alike: the triangle dashed, the square solid
 EXACT_POLYGON_DASH = {3.0: "dashed", 4.0: "solid"}
+#: the word of the polygon each exact curve closes
+EXACT_POLYGON_WORDS = {3.0: "triangle", 4.0: "square"}
 
 
 def exact_polygon_field(panel: xr.Dataset, x: str, y: str) -> np.ndarray | None:
@@ -182,6 +188,35 @@ def exact_polygon_field(panel: xr.Dataset, x: str, y: str) -> np.ndarray | None:
                                                          LABELS.index("square")])
     ns = np.where(np.isfinite(ns) & (ns < 6), ns, np.nan)
     return ns if np.isfinite(ns).sum() >= 4 and poly.any() else None
+
+
+def curve_crossings(ns: np.ndarray, lab: np.ndarray) -> dict:
+    """{n_sides level: words} for each exact-polygon curve of `exact_polygon_field` `ns` that
+    runs through the region of another label on the label codes `lab` (same grid): the words
+    of the labels on both sides of the curve's crossings between neighbouring grid points, other
+    than the polygon's own (n = 4 runs through `circle` where a rounded square stays within 5 %
+    of a circle, and the eye sees a circle)."""
+    out = {}
+    lab = np.asarray(lab, dtype=float)
+    for lv, word in EXACT_POLYGON_WORDS.items():
+        d = ns - lv
+        found = set()
+        for a, b, la, lb in ((d[:, :-1], d[:, 1:], lab[:, :-1], lab[:, 1:]),
+                             (d[:-1, :], d[1:, :], lab[:-1, :], lab[1:, :])):
+            with np.errstate(invalid="ignore"):
+                # the curve passes between the two (or through one of them)
+                cross = (a * b <= 0) & ((a != 0) | (b != 0)) & (la == lb) & np.isfinite(la)
+            found |= {LABELS[int(c)] for c in np.unique(la[cross]) if 0 <= c < len(LABELS)}
+        found.discard(word)
+        if found:
+            out[lv] = sorted(found, key=LABELS.index)
+    return out
+
+
+def crossing_text(level: float, words) -> str:
+    """What a map says where the exact polygon `level` runs through other labels' regions."""
+    return (f"also through {' and '.join(words)}: n={int(level)} there, but the path reads "
+            f"as {' or '.join(words)}")
 
 
 def plot_map(ds: xr.Dataset, out=None, x: str | None = None, y: str | None = None,
@@ -241,6 +276,7 @@ def map_figure(ds: xr.Dataset, x: str | None = None, y: str | None = None,
     norm = BoundaryNorm(np.arange(-0.5, len(LABELS) + 0.5), cmap.N)
     present = set()
     drew_contours = False
+    crossings = {}
     for ax, panel in zip(axes.flat, panels):
         lab = panel.label.transpose(y, x).values.astype(float)
         lab[lab < 0] = np.nan
@@ -254,6 +290,8 @@ def map_figure(ds: xr.Dataset, x: str | None = None, y: str | None = None,
                             linestyles=[EXACT_POLYGON_DASH[lv] for lv in EXACT_POLYGON_LEVELS])
             ax.clabel(cs, fmt={3.0: "n=3", 4.0: "n=4"}, fontsize=8)
             drew_contours = True
+            for lv, words in curve_crossings(ns, lab).items():
+                crossings.setdefault(lv, set()).update(words)
         ax.set_xlabel(AXIS_TEXT.get(x, x))
         ax.set_ylabel(AXIS_TEXT.get(y, y))
         if facet:
@@ -273,8 +311,12 @@ def map_figure(ds: xr.Dataset, x: str | None = None, y: str | None = None,
     if drew_contours:
         from matplotlib.lines import Line2D
 
-        handles += [Line2D([], [], color="k", lw=1.0, ls=EXACT_POLYGON_DASH[lv], label=text)
-                    for lv, text in ((3.0, "exact triangle (n=3)"), (4.0, "exact square (n=4)"))]
+        for lv, text in ((3.0, "exact triangle (n=3)"), (4.0, "exact square (n=4)")):
+            if lv in crossings:  # where the exact curve runs through another label's region
+                words = sorted(crossings[lv], key=LABELS.index)
+                text += "\n" + "\n".join(textwrap.wrap(crossing_text(lv, words), 30))
+            handles.append(Line2D([], [], color="k", lw=1.0, ls=EXACT_POLYGON_DASH[lv],
+                                  label=text))
     fig.legend(handles=handles, loc="outside right center", title="path shape", fontsize=9)
     return fig
 
@@ -441,6 +483,7 @@ def path_figure(ds: xr.Dataset, ball: Ball | None = None, title: str | None = No
     """The figure `plot_path` writes (a matplotlib `Figure`, not yet saved)."""
     from matplotlib.collections import LineCollection
     from matplotlib.lines import Line2D
+    from matplotlib.ticker import MaxNLocator
 
     ball = ball or Ball.paper()
     diag = path_diagnostics(ds, ball)
@@ -454,14 +497,20 @@ def path_figure(ds: xr.Dataset, ball: Ball | None = None, title: str | None = No
     ax = fig.add_subplot(gs[:, 0])
     pts = np.stack([x, y], 1)
     segs = np.stack([pts[:-1], pts[1:]], 1)
-    lc = LineCollection(segs, cmap="viridis", linewidths=1.6)
-    lc.set_array(0.5 * (th[1:] + th[:-1]))
-    if np.ptp(th) < 1.0:  # a steady launch: a colour scale of one degree, not of rounding noise
-        lc.set_clim(th.mean() - 0.5, th.mean() + 0.5)
-    ax.add_collection(lc)
-    fig.colorbar(lc, ax=ax, label=r"$\theta$ (deg)", shrink=0.7,
-                 location="bottom" if only_path else "right", aspect=30 if only_path else 20,
-                 format="%g")
+    if np.ptp(th) < STEADY_THETA_DEG:
+        # theta (nearly) constant: one colour and its value, not a colour scale of its rounding
+        # noise
+        lc = LineCollection(segs, colors=[STEADY_COLOUR], linewidths=1.6,
+                            label=rf"centre of mass ($\theta$ = {th.mean():.2f} deg throughout)")
+        ax.add_collection(lc)
+    else:
+        lc = LineCollection(segs, cmap="viridis", linewidths=1.6,
+                            label=r"centre of mass (colour: $\theta$)")
+        lc.set_array(0.5 * (th[1:] + th[:-1]))
+        ax.add_collection(lc)
+        fig.colorbar(lc, ax=ax, label=r"$\theta$ (deg)", shrink=0.7,
+                     location="bottom" if only_path else "right",
+                     aspect=30 if only_path else 20, format="%g")
     # corners only where the classifier judged corners (polygons and stars)
     a = ds.attrs
     has_corners = a.get("label") in ("triangle", "square", "ngon", "star")
@@ -473,6 +522,9 @@ def path_figure(ds: xr.Dataset, ball: Ball | None = None, title: str | None = No
     draw_body_points(ax, ds, show)
     ax.set_aspect("equal", adjustable="datalim")
     ax.autoscale_view()
+    # few enough ticks that labels such as -0.075 never run into each other
+    ax.xaxis.set_major_locator(MaxNLocator(nbins=4 if only_path else 6))
+    ax.yaxis.set_major_locator(MaxNLocator(nbins=6 if only_path else 8))
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.set_title(shape_text(a), fontsize=11)
@@ -503,28 +555,45 @@ def path_figure(ds: xr.Dataset, ball: Ball | None = None, title: str | None = No
                borderaxespad=0.2)
     ax3 = fig.add_subplot(gs[2, 1], sharex=ax1)
     ax4 = ax3.twinx()
-    ax4.plot(t, diag["normal_N"], color=LINE_COLOURS["normal"], lw=1.2, ls=(0, (4, 1.5)))
+    # N dashed with open circles, |F_h|/N solid: told apart where they cross or lie on top
+    normal_style = dict(color=LINE_COLOURS["normal"], lw=1.2, ls=(0, (4, 1.5)), marker="o",
+                        ms=4, mfc="none", markevery=(0.05, 0.1))
+    ax4.plot(t, diag["normal_N"], **normal_style)
     ax4.set_ylabel("N (N), dashed", color=LINE_COLOURS["normal"])
     ax3.plot(t, diag["friction_ratio"], color=LINE_COLOURS["friction"], lw=1)
     ax3.set_zorder(ax4.get_zorder() + 1)  # |F|/N in front of N
     ax3.patch.set_visible(False)
     ax3.set_ylabel(r"$|F_h|/N$, solid", color=LINE_COLOURS["friction"])
     ax3.set_xlabel("t (s)")
-    ax3.legend(handles=[Line2D([], [], color=LINE_COLOURS["friction"], lw=1, label=r"$|F_h|/N$"),
-                        Line2D([], [], color=LINE_COLOURS["normal"], lw=1.2, ls=(0, (4, 1.5)),
-                               label="N")],
+    # a constant one is named with its value, and the two constants are drawn apart (|F_h|/N at
+    # a third of the panel's height, N at two thirds) instead of on top of each other
+    ratio_text, normal_text = r"$|F_h|/N$", "N"
+    if _constant(diag["friction_ratio"]):
+        ratio_text += f" = {np.nanmean(diag['friction_ratio']):.4g} throughout"
+    if _constant(diag["normal_N"]):
+        normal_text += f" = {np.nanmean(diag['normal_N']):.4g} N throughout"
+    ax3.legend(handles=[Line2D([], [], color=LINE_COLOURS["friction"], lw=1, label=ratio_text),
+                        Line2D([], [], label=normal_text, **{**normal_style, "markevery": None})],
                loc="lower left", bbox_to_anchor=(1.12, 0.0), fontsize=8, frameon=False)
-    for axis, values, floor in ((ax1, th, 0.5), (ax3, diag["friction_ratio"], None),
-                                (ax4, diag["normal_N"], None)):
-        _no_noise_scale(axis, values, floor)
+    for axis, values, floor, at in ((ax1, th, 0.5, 0.5), (ax3, diag["friction_ratio"], None, 1 / 3),
+                                    (ax4, diag["normal_N"], None, 2 / 3)):
+        _no_noise_scale(axis, values, floor, at)
     fig.suptitle(title or launch_title(a), fontsize=11)
     return fig
 
 
-def _no_noise_scale(ax, values, half_span=None) -> None:
+def _constant(values, rel: float = 1e-3) -> bool:
+    """Whether a panel's quantity is constant to `rel` of its size (a steady launch)."""
+    v = np.asarray(values, dtype=float)
+    v = v[np.isfinite(v)]
+    return v.size > 0 and float(np.ptp(v)) <= rel * max(float(np.abs(v).max()), 1e-300)
+
+
+def _no_noise_scale(ax, values, half_span=None, at: float = 0.5) -> None:
     """A panel of a quantity that hardly changes (a steady launch) drawn on a sensible scale:
-    plain tick labels (no offset like 1e-5+2.4e1) and at least +-half_span (default: 5 % of the
-    value) about its mean, so rounding noise is not blown up into a band."""
+    plain tick labels (no offset like 1e-5+2.4e1) and a span of 2 half_span (default: 5 % of the
+    value) with its mean at the fraction `at` of the height, so rounding noise is not blown up
+    into a band (and two such quantities on twin axes can be drawn apart)."""
     v = np.asarray(values, dtype=float)
     v = v[np.isfinite(v)]
     if v.size == 0:
@@ -532,7 +601,7 @@ def _no_noise_scale(ax, values, half_span=None) -> None:
     mid = float(v.mean())
     h = half_span if half_span is not None else 0.05 * max(abs(mid), 1e-12)
     if np.ptp(v) < h:
-        ax.set_ylim(mid - h, mid + h)
+        ax.set_ylim(mid - 2 * h * at, mid + 2 * h * (1 - at))
     ax.ticklabel_format(axis="y", useOffset=False, style="plain")
 
 

@@ -62,7 +62,10 @@ class CycleQuadrature:
         return {"theta_min_deg": math.degrees(self.theta_min),
                 "theta_max_deg": math.degrees(self.theta_max),
                 "theta_period_s": self.period * ball.time_unit,
-                "turn_per_cycle_deg": (math.degrees(self.turn) + 180.0) % 360.0 - 180.0}
+                # the path's turn is chi's change up to whole turns (the direction of motion
+                # also winds relative to chi within a cycle), folded as the classifier's is
+                "turn_per_cycle_deg": (math.degrees(self.turn) + 180.0) % 360.0 - 180.0,
+                "chi_change_per_cycle_deg": math.degrees(self.turn)}
 
 
 def _rates(th, R, J, c, A, B):
@@ -166,7 +169,9 @@ def cycle_by_quadrature(theta0: float, thetadot0: float, chidot0: float, phidot0
 
 
 def launch_cycle(theta0_deg, thetadot0, chidot0, phidot0, ball: Ball | None = None) -> dict | None:
-    """SI launch (deg, rad/s) -> theta range (deg), period (s), folded turn per cycle (deg)."""
+    """SI launch (deg, rad/s) -> theta range (deg), period (s), the path's turn per cycle folded
+    into (-180, 180] (deg, as the classifier's `turn_per_cycle_deg`) and chi's own change per
+    cycle (deg, unfolded: the turn plus whole turns)."""
     ball = ball or Ball.paper()
     tu = ball.time_unit
     q = cycle_by_quadrature(math.radians(theta0_deg), thetadot0 * tu, chidot0 * tu, phidot0 * tu,

@@ -27,7 +27,10 @@ RESULT_VARIABLES = {
     "n_sides": ("f8", "1", "360 deg over the absolute net turn per theta cycle", {}),
     "turn_per_cycle_deg": ("f8", "degree",
                            "net turn of the path per theta cycle, folded into (-180, 180], "
-                           "counter-clockwise positive seen from above", {}),
+                           "counter-clockwise positive seen from above",
+                           {"comment": "the heading of the path, not chi: chi's change per "
+                                       "cycle is this plus a whole number of turns "
+                                       "(ballsurvey.quadrature.launch_cycle gives it)"}),
     "chord_turn_per_cycle_deg": ("f8", "degree",
                                  "mean rotation of the chord between successive theta maxima", {}),
     "formulation": ("i1", None, "equations the launch was integrated with",
