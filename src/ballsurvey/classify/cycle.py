@@ -21,8 +21,9 @@ Clenshaw-Curtis quadrature on N + 1 Chebyshev-Lobatto points in s (spectral for 
 integrands, and the points cluster at the turning points, where the tilt's approach to the
 vertical makes the integrands' only sharp feature), N = 8, 16, ..., 512, nested (each level
 reuses the last's points) until the period and the turn of two successive levels agree to
-`QUAD_RTOL` (relative, and absolute in rad for the turn); not converged at 512: left to the
-integrator. At the final level the cumulative integrals (Chebyshev integration matrix) give, at
+`QUAD_RTOL` and `TURN_TOL` (relative; absolute in rad for a turn under 1 rad); not converged at
+512: left to the integrator. The path is then taken at the level before the last (its period
+and turn agree with the last's to those tolerances), the period and turn from the last. At the final level the cumulative integrals (Chebyshev integration matrix) give, at
 every point, the time, the heading chi (from chidot) and G's position (from its velocity, in the
 heading frame turned by chi).
 
@@ -33,7 +34,7 @@ differenced between events), chord and side (G at the extrema: the side is the d
 G at theta_min and its mirror image), the orbit centre (fixed point of the rotation by the turn
 that maps one minimum onto the next), the least and largest distance from it over the half cycle
 (= over the whole orbit), and over the cycle the peak path heading rate, the total absolute
-heading change, the least and mean speed, the velocity's winding relative to the heading (from
+heading change (the variation of the path's heading over the points), the least and mean speed, the velocity's winding relative to the heading (from
 the sign of the forward speed at the two turning points: the velocity stays in one half-plane
 over each half cycle), the least normal force and the largest friction demand (functions of theta
 alone). Extrema over the points are refined by the parabola through the best point and its two
@@ -66,8 +67,10 @@ STATUSES = ("done", "steady", "vertical", "unconverged")
 FIRST_N, LEVELS = 16, 6
 MAX_N = FIRST_N << (LEVELS - 1)
 #: agreement of the period (relative) and of the half cycle's turn (relative, absolute in rad
-#: below 1 rad) between two successive levels
-QUAD_RTOL = 1e-9
+#: below 1 rad) between two successive levels. The turn's is wider: near the vertical chidot
+#: reaches 1e3 and the rounding of F close to the turning points (a difference of terms 1e6
+#: times larger) leaves it 1e-9 of noise (the integrals are then as good as that: 4e-7 deg)
+QUAD_RTOL, TURN_TOL = 1e-9, 5e-9
 #: the vertical less a hair: a tilt whose F is still positive there goes through it
 TILT_LIMIT = 0.5 * math.pi * (1.0 - 1e-13)
 #: first step of the outward search for a turning point, and its largest (rad)
@@ -110,9 +113,13 @@ def _rates(th, E, J, R, c, A, B):
     less M g a)."""
     sth, cth = math.sin(th), math.cos(th)
     w = R / math.sqrt(A * B + A * cth * cth + B * (sth - c) ** 2)
-    chd = (B * w * (sth - c) - J) / (A * cth * cth)
+    chc = (B * w * (sth - c) - J) / (A * cth)  # chidot cos(theta): bounded at the vertical
+    chd = chc / cth
     phd = w + chd * sth
-    u = kinetic(sth, cth, 0.0, chd, phd, c, A, B) - c * sth
+    # the energy at thetadot = 0 (`kinetic` less c sin theta) from w and chidot cos(theta),
+    # not from phidot - chidot sin(theta), which loses |chidot| ulps near the vertical
+    fwd = w * cth + chc * (sth - c)  # (phidot - c chidot) cos(theta)
+    u = 0.5 * (A * chc * chc + B * w * w + fwd * fwd) - c * sth
     return sth, cth, chd, phd, 2.0 * (E - u) / (A + 1.0 - 2.0 * c * sth + c * c)
 
 
@@ -220,7 +227,7 @@ def _cumulate(qm, off, n, f, out):
 def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, sin_s, cos_s,
               weights, qm, offsets, scr, node, obs, i):
     """Launch i (non-dimensional tilt, rates) -> its observer slots obs[:, i]; returns a status.
-    scr (N_SCRATCH, MAX_N + 1) and node (14, MAX_N + 1): scratch."""
+    scr (N_SCRATCH, MAX_N + 1) and node (15, MAX_N + 1): scratch."""
     s0, c0 = math.sin(th0), math.cos(th0)
     # the energy less its constant M g a: F is a small difference near the turning points
     E = kinetic(s0, c0, thd0, chd0, phd0, c, A, B) - c * s0
@@ -279,7 +286,7 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
             per += wt
             turn += wt * scr[_CHD, k]
         if (L > 0 and abs(per - per_prev) <= QUAD_RTOL * per
-                and abs(turn - turn_prev) <= QUAD_RTOL * max(1.0, abs(turn))):
+                and abs(turn - turn_prev) <= TURN_TOL * max(1.0, abs(turn))):
             level = L
             break
         per_prev, turn_prev = per, turn
@@ -293,7 +300,7 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
     stride = MAX_N // n
     ss, tau_c, chd_tau, u_a, w_tau, psid_a, speed_a, fric_a, norm_a = (
         node[0], node[1], node[2], node[3], node[4], node[5], node[6], node[7], node[8])
-    chi_a, x_a, y_a, fx, fy = node[9], node[10], node[11], node[12], node[13]
+    chi_a, x_a, y_a, fx, fy, w_a = node[9], node[10], node[11], node[12], node[13], node[14]
     for j in range(n + 1):
         k = j * stride
         th, tau, chd = scr[_TH, k], scr[_TAU, k], scr[_CHD, k]
@@ -315,6 +322,7 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
         chd_tau[j] = chd * tau
         u_a[j] = u
         w_tau[j] = a1 * h * cos_s[k]  # w dt/ds = a' dtheta/ds on the rising half
+        w_a[j] = w
         psid_a[j] = abs(psid)
         speed_a[j] = math.sqrt(v2)
         fric_a[j] = fric
@@ -328,11 +336,19 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
     _cumulate(qm, off, n, fx, x_a)
     _cumulate(qm, off, n, fy, y_a)
     period, dchi = 2.0 * per_fine, 2.0 * turn_fine
-    t_turn, v_int = 0.0, 0.0
+    v_int = 0.0
     for j in range(n + 1):
-        wt = weights[level, j * stride] * tau_c[j]
-        t_turn += wt * psid_a[j]
-        v_int += wt * speed_a[j]
+        v_int += weights[level, j * stride] * tau_c[j] * speed_a[j]
+    # the path heading's total absolute change over the half cycle: its variation over the
+    # points, psi = chi + the velocity's direction in the heading frame (exact where psi is
+    # monotone between points; a quadrature of |psidot| would miss the spikes at a cusp)
+    t_turn = 0.0
+    psi_prev = chi_a[0] + math.atan2(w_a[0], u_a[0])
+    for j in range(1, n + 1):
+        psi = chi_a[j] + math.atan2(w_a[j], u_a[j])
+        dpsi = psi - psi_prev
+        t_turn += abs(dpsi - 2.0 * math.pi * math.floor((dpsi + math.pi) / (2.0 * math.pi)))
+        psi_prev = psi
     # --- the orbit: G at theta_max, the next minimum (the mirror of the first), the centre -----
     xm, ym = x_a[n], y_a[n]
     ex, ey = math.cos(chi_a[n]), math.sin(chi_a[n])
@@ -423,7 +439,7 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
 def _block(y0, params, T, stop_after, steady_tol, tabs_s, sin_s, cos_s, weights, qm, offsets,
            lo, hi, obs, status):
     scr = np.empty((N_SCRATCH, MAX_N + 1))
-    node = np.empty((14, MAX_N + 1))
+    node = np.empty((15, MAX_N + 1))
     for i in range(lo, hi):
         status[i] = cycle_one(y0[2, i], y0[5, i], y0[6, i], y0[7, i], params[0, i],
                               params[1, i], params[2, i], T, stop_after, steady_tol, tabs_s,
