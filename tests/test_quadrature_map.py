@@ -67,12 +67,12 @@ def dop853_tight():
 
 
 def _module(launch):
-    """The numpy module's cycle at its tightest agreement between panel counts that converges
-    (its integrand's rounding noise stops 1e-10 near the vertical)."""
+    """The numpy module's cycle at the tighter of 1e-10 and 1e-9 agreement between panel counts
+    that converges (its integrand's rounding noise stops 1e-10 near the vertical)."""
     saved = qmod.QUAD_RTOL, qmod.MAX_PANELS
     try:
-        for rtol in (1e-11, 1e-10, 1e-9):
-            qmod.QUAD_RTOL, qmod.MAX_PANELS = rtol, 4096
+        for rtol in (1e-10, 1e-9):
+            qmod.QUAD_RTOL, qmod.MAX_PANELS = rtol, 1024
             r = qmod.launch_cycle(*launch, BALL)
             if r is not None:
                 return r
@@ -182,3 +182,43 @@ def test_results_do_not_depend_on_block_or_threads():
     full, _ = cycle.cycles_by_quadrature(y0, params, 20 / TU)
     assert (sa == cycle.DONE).all()
     assert (a[ob.O_NMAX] <= 3).all() and (full[ob.O_NMAX] >= a[ob.O_NMAX]).all()
+
+
+def test_a_quadrature_sweep_counts_its_fallbacks_and_matches_dop853(tmp_path):
+    import subprocess
+    import sys
+
+    import xarray as xr
+
+    spec = """
+title = "by quadrature"
+[launch]
+theta0_deg = [10.0, 24.0, 45.0]
+thetadot0 = 0.0
+chidot0 = [-3.23, 0.0, 3.0]
+phidot0 = [-3.0, 0.0]
+[run]
+T = 4.0
+dt = 1e-3
+method = "{method}"
+mode = "period"
+[output]
+file = "{out}"
+"""
+    maps = {}
+    for method in ("quadrature", "dop853"):
+        path = tmp_path / f"{method}.toml"
+        path.write_text(spec.format(method=method, out=tmp_path / f"{method}.nc"))
+        r = subprocess.run([sys.executable, "-m", "ballsurvey", "sweep", str(path),
+                            "--no-progress"], capture_output=True, text=True, timeout=600)
+        assert r.returncode == 0, r.stderr
+        maps[method] = (r.stdout + r.stderr, xr.load_dataset(tmp_path / f"{method}.nc"))
+    out, q = maps["quadrature"]
+    _, d = maps["dop853"]
+    n_fallback = int((q.formulation.values == FIXED_FRAME).sum())
+    # (45, 0, 0, 0) rocks through the upright position: at least it goes to the integrator
+    assert n_fallback >= 1 and (q.formulation.values == QUADRATURE).sum() >= 6
+    assert (f"integrated (dop853) where the quadrature cannot go (tilt through the vertical, "
+            f"launched steady, not converged): {n_fallback}") in out
+    assert q.formulation.attrs["flag_meanings"] == "euler_angles fixed_frame quadrature"
+    assert np.array_equal(q.label.values, d.label.values)
