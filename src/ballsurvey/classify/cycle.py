@@ -19,28 +19,28 @@ rising half cycle, dt/ds = h cos s / sqrt(F) is smooth (its value at the ends,
 sqrt(h / |thetaddot|), is the limit) and so is every integrand below. They are integrated by
 Clenshaw-Curtis quadrature on N + 1 Chebyshev-Lobatto points in s (spectral for smooth
 integrands, and the points cluster at the turning points, where the tilt's approach to the
-vertical makes the integrands' only sharp feature), N = 8, 16, ..., 512, nested (each level
+vertical makes the integrands' only sharp feature), N = 16, 32, ..., 512, nested (each level
 reuses the last's points) until the period and the turn of two successive levels agree to
 `QUAD_RTOL` and `TURN_TOL` (relative; absolute in rad for a turn under 1 rad); not converged at
-512: left to the integrator. The path is then taken at the level before the last (its period
-and turn agree with the last's to those tolerances), the period and turn from the last. At the final level the cumulative integrals (Chebyshev integration matrix) give, at
-every point, the time, the heading chi (from chidot) and G's position (from its velocity, in the
-heading frame turned by chi).
+512: left to the integrator. The period and turn are the last level's; the path is taken at the
+level before (its period and turn agree with the last's to those tolerances): there the
+cumulative integrals (Chebyshev integration matrix) give, at every point, the time, the heading
+chi (from chidot) and G's position (from its velocity, in the heading frame turned by chi).
 
-From them, per launch, the observer's slots (`observer.SLOTS`) are filled as the stepping
-observer would fill them after the same number of theta maxima, so the one labeller
-(`labels.label_fields`) labels either: theta range, period and turn per cycle (exact, not
-differenced between events), chord and side (G at the extrema: the side is the distance between
-G at theta_min and its mirror image), the orbit centre (fixed point of the rotation by the turn
-that maps one minimum onto the next), the least and largest distance from it over the half cycle
-(= over the whole orbit), and over the cycle the peak path heading rate, the total absolute
-heading change (the variation of the path's heading over the points), the least and mean speed, the velocity's winding relative to the heading (from
-the sign of the forward speed at the two turning points: the velocity stays in one half-plane
-over each half cycle), the least normal force and the largest friction demand (functions of theta
-alone). Extrema over the points are refined by the parabola through the best point and its two
-neighbours (the functions are even about the turning points, so an extremum there is exact).
-The invariants do not drift (0 is recorded). The count of theta maxima in T (capped at the
-period mode's target) comes from the time of the first maximum after the launch.
+From them, per launch, the observer's slots (`observer.SLOTS`) are filled as the stepping observer
+would fill them after the same number of theta maxima, so the one labeller (`labels.label_fields`)
+labels either: theta range, period and turn per cycle (exact, not differenced between events),
+chord and side (G at the extrema: the side is the distance between G at theta_min and its mirror
+image), the orbit centre (fixed point of the rotation by the turn that maps one minimum onto the
+next), the least and largest distance from it over the half cycle (= over the whole orbit), and
+over the cycle the peak path heading rate, the total absolute heading change (the variation of the
+path's heading over the points), the least and mean speed, the velocity's winding relative to the
+heading (from the sign of the forward speed at the two turning points: the velocity stays in one
+half-plane over each half cycle), the least normal force and the largest friction demand (functions
+of theta alone). Extrema over the points are refined by the parabola through the best point and its
+two neighbours (the functions are even about the turning points, so an extremum there is exact).
+The invariants do not drift (0 is recorded). The count of theta maxima in T (capped at the period
+mode's target) comes from the time of the first maximum after the launch.
 
 Status per launch (`DONE`, or why the integrator must do it): `STEADY` (|thetadot0| and
 |thetaddot0| below the classifier's steady_rate_tol), `VERTICAL` (theta reaches +-90 deg),
