@@ -9,23 +9,23 @@ extrema: the path is mirror-symmetric about the line through G at a theta extrem
 heading there).
 
 Turning points. From the launch (a turning point itself when thetadot0 = 0: the sign of
-thetaddot0 says which), F is followed outward in steps of 1, 2, then 4 deg until it changes sign
+thetaddot0 says which), F is followed outward in steps of 2, 4, then 8 deg until it changes sign
 (a tilt that reaches the vertical, +-90 deg less 1e-13, is left to the integrator), and the root
 is solved by Newton's method on F with its exact derivative F' = 2 thetaddot(theta, thetadot =
 sqrt F), kept inside the bracket by bisection, to rounding.
 
 Quadrature. With theta = m + h sin s (m, h: the middle and half-range), s in [-pi/2, pi/2] runs the
-rising half cycle, dt/ds = h cos s / sqrt(F) is smooth (its value at the ends,
-sqrt(h / |thetaddot|), is the limit) and so is every integrand below. They are integrated by
-Clenshaw-Curtis quadrature on N + 1 Chebyshev-Lobatto points in s (spectral for smooth
-integrands, and the points cluster at the turning points, where the tilt's approach to the
-vertical makes the integrands' only sharp feature), N = 16, 32, ..., 512, nested (each level
-reuses the last's points) until the period and the turn of two successive levels agree to
-`QUAD_RTOL` and `TURN_TOL` (relative; absolute in rad for a turn under 1 rad); not converged at
-512: left to the integrator. The period and turn are the last level's; the path is taken at the
-level before (its period and turn agree with the last's to those tolerances): there the
-cumulative integrals (Chebyshev integration matrix) give, at every point, the time, the heading
-chi (from chidot) and G's position (from its velocity, in the heading frame turned by chi).
+rising half cycle, dt/ds = h cos s / sqrt(F) is smooth (its value at the ends, sqrt(h /
+|thetaddot|), is the limit) and so is every integrand below. They are integrated by Clenshaw-Curtis
+quadrature on N + 1 Chebyshev-Lobatto points in s (spectral for smooth integrands, and the points
+cluster at the turning points, where the tilt's approach to the vertical makes the integrands' only
+sharp feature), N = 16, 32, ..., 512, nested (each level reuses the last's points) until the period
+and the turn of two successive levels agree to `QUAD_RTOL` and `TURN_TOL` (relative; absolute in
+rad for a turn under 1 rad; no tighter than F's own rounding allows: `NOISE_FACTOR`); not converged
+at 512: left to the integrator. The period and turn are the last level's; the path is taken at the
+level before (its period and turn agree with the last's to those tolerances): there the cumulative
+integrals (Chebyshev integration matrix) give, at every point, the time, the heading chi (from
+chidot) and G's position (from its velocity, in the heading frame turned by chi).
 
 From them, per launch, the observer's slots (`observer.SLOTS`) are filled as the stepping observer
 would fill them after the same number of theta maxima, so the one labeller (`labels.label_fields`)
@@ -71,10 +71,14 @@ MAX_N = FIRST_N << (LEVELS - 1)
 #: reaches 1e3 and the rounding of F close to the turning points (a difference of terms 1e6
 #: times larger) leaves it 1e-9 of noise (the integrals are then as good as that: 4e-7 deg)
 QUAD_RTOL, TURN_TOL = 1e-9, 5e-9
+#: where F is small everywhere (an oscillation of a fraction of a degree), its rounding (ulps of
+#: the energy's terms, S) is a larger part of it: the tolerances are then at least NOISE_FACTOR
+#: times the relative rounding of F halfway, eps S / F(m), and at most NOISE_CAP
+NOISE_FACTOR, NOISE_CAP = 100.0, 1e-6
 #: the vertical less a hair: a tilt whose F is still positive there goes through it
 TILT_LIMIT = 0.5 * math.pi * (1.0 - 1e-13)
 #: first step of the outward search for a turning point, and its largest (rad)
-SEARCH_STEP, SEARCH_STEP_MAX = math.radians(1.0), math.radians(4.0)
+SEARCH_STEP, SEARCH_STEP_MAX = math.radians(2.0), math.radians(8.0)
 #: a launch at rest in theta starts its search this far inside (rad)
 START_OFFSET = 1e-9
 #: per-point scratch columns
@@ -150,9 +154,12 @@ def _root(a, b, E, J, R, c, A, B):
             b = x
         nx = x - f / df if df != 0.0 else 0.5 * (a + b)
         lo, hi = min(a, b), max(a, b)
-        if not (lo < nx < hi) or not math.isfinite(nx):
+        newton = lo < nx < hi and math.isfinite(nx)
+        if not newton:
             nx = 0.5 * (a + b)
-        if nx == x or abs(b - a) <= 4e-16 * max(1.0, abs(x)):
+        # a Newton step this short leaves an error of order its square: rounding
+        if (newton and abs(nx - x) <= 1e-12 * max(1.0, abs(x))) or nx == x \
+                or abs(b - a) <= 4e-16 * max(1.0, abs(x)):
             return nx
         x = nx
     return x
@@ -230,7 +237,9 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
     scr (N_SCRATCH, MAX_N + 1) and node (15, MAX_N + 1): scratch."""
     s0, c0 = math.sin(th0), math.cos(th0)
     # the energy less its constant M g a: F is a small difference near the turning points
-    E = kinetic(s0, c0, thd0, chd0, phd0, c, A, B) - c * s0
+    kin = kinetic(s0, c0, thd0, chd0, phd0, c, A, B)
+    E = kin - c * s0
+    scale = kin + c * abs(s0)  # the size of the terms F is a difference of
     J = jellett(s0, c0, thd0, chd0, phd0, c, A, B)
     R = routh(s0, c0, thd0, chd0, phd0, c, A, B)
     thdd0 = accelerations(s0, c0, thd0, chd0, phd0, c, A, B)[0]
@@ -259,6 +268,7 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
     # --- nested Clenshaw-Curtis levels until period and turn converge --------------------------
     per_prev, turn_prev = math.nan, math.nan
     level = -1
+    tol_p, tol_t = QUAD_RTOL, TURN_TOL
     for L in range(LEVELS):
         n = FIRST_N << L
         stride = MAX_N // n
@@ -279,14 +289,18 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
                 tau = h * cos_s[k] / thd
             scr[_TH, k], scr[_TAU, k], scr[_CHD, k] = th, tau, chd
             scr[_PHD, k], scr[_THD, k] = phd, thd
+        if L == 0:  # F halfway against the energy's terms: the rounding floor
+            noise = 2.2e-16 * scale / scr[_THD, MAX_N // 2] ** 2
+            tol_p = max(QUAD_RTOL, min(NOISE_CAP, NOISE_FACTOR * noise))
+            tol_t = max(TURN_TOL, min(NOISE_CAP, NOISE_FACTOR * noise))
         per, turn = 0.0, 0.0
         for j in range(n + 1):
             k = j * stride
             wt = weights[L, k] * scr[_TAU, k]
             per += wt
             turn += wt * scr[_CHD, k]
-        if (L > 0 and abs(per - per_prev) <= QUAD_RTOL * per
-                and abs(turn - turn_prev) <= TURN_TOL * max(1.0, abs(turn))):
+        if (L > 0 and abs(per - per_prev) <= tol_p * per
+                and abs(turn - turn_prev) <= tol_t * max(1.0, abs(turn))):
             level = L
             break
         per_prev, turn_prev = per, turn
