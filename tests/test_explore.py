@@ -419,3 +419,11 @@ def test_points_map_page_in_a_browser(maps, browser, tmp_path):
 
         assert cells["map label"] == LABELS[int(ds.label.values[i])]
         assert cells["map n_sides"] == f"{float(ds.n_sides.values[i]):.4f}"
+
+
+def test_a_quadrature_maps_click_is_integrated_by_dopri5_and_says_so(maps, lazy):
+    ds = lazy(maps / "grid.nc").copy()
+    ds.attrs["run_method"] = "quadrature"
+    s = explore.run_settings(ds)
+    assert s.method == "dopri5"
+    assert "the map's quadrature computes one theta cycle, no path" in s.note
