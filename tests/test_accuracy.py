@@ -207,6 +207,10 @@ def test_near_the_vertical_every_setting_puts_launches_in_the_quadratures_n_regi
     run's turn per cycle, averaged over many cycles, must be far inside a degree."""
     r = near_vertical_check(n=24)
     assert r["launches"] >= 12
-    for name in ("rk4 full", "rk4 period", "dop853 period"):
+    for name in ("rk4 full", "rk4 period", "dop853 period", "quadrature period"):
         assert r[name]["same_n"] == r["launches"], (name, r)
     assert r["rk4 full"]["turn_deg"] < 0.01, r
+    # the map by quadrature: every launch labelled as full RK4 labels it, and its turn as the
+    # numpy quadrature's to that module's own accuracy
+    assert r["quadrature period"]["same_label"] == r["n"] == 24, r
+    assert r["quadrature period"]["turn_deg"] < 1e-5, r

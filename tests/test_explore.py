@@ -410,3 +410,11 @@ def test_the_legend_says_where_an_exact_curve_runs_through_another_label():
     assert "exact square (n = 4) (also through circle: n=4 there, but the path reads as circle)" \
         in text
     assert "also through" not in legend_html([0, 3], {4.0: ([0.0], [0.0])})
+
+
+def test_a_quadrature_maps_click_is_integrated_by_dopri5_and_says_so(maps, lazy):
+    ds = lazy(maps / "grid.nc").copy()
+    ds.attrs["run_method"] = "quadrature"
+    s = explore.run_settings(ds)
+    assert s.method == "dopri5"
+    assert "the map's quadrature computes one theta cycle, no path" in s.note

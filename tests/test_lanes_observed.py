@@ -195,3 +195,10 @@ def test_headline_bench_runs_either_method():
         # 6 of the 27 launches, labelled again by full RK4 at dt 1e-4 s to T: no
         # disagreement expected on so few (the box's disagreement rate is about 0.2 %)
         assert r["agreement"] == 1.0 and r["wall_s"] > 0
+    # by quadrature, with the dop853 map swept beside it in the same run and the speed-up printed
+    lines = []
+    r = run_headline(n=3, T=3.0, method="quadrature", sample=6, out=lines.append)
+    assert r["agreement"] == 1.0 and r["baseline"]["method"] == "dop853"
+    assert r["baseline"]["agreement"] == 1.0
+    assert any(line.startswith("  baseline, dop853 at rtol 1e-09, same run") for line in lines)
+    assert any("speed-up of quadrature over dop853" in line for line in lines)

@@ -210,6 +210,7 @@ NEAR_VERTICAL_RUNS = {
     "rk4 full": dict(method="rk4", dt=1e-4, cycles=0),
     "rk4 period": dict(method="rk4", dt=1e-4, cycles=2),
     "dop853 period": dict(method="dop853", dt=1e-3, cycles=2),
+    "quadrature period": dict(method="quadrature", dt=1e-3, cycles=2),
 }
 
 
@@ -219,7 +220,8 @@ def near_vertical_check(n=40, seed=5, T=20.0) -> dict:
     chart is left and the fixed-frame form takes over, against the quadrature (which holds up
     to a hair of 90 deg): for each map setting of NEAR_VERTICAL_RUNS, the largest error in turn
     per cycle (deg) and in n_sides, over the launches the quadrature resolves and every run
-    labels with a shape. quadrature_check leaves these launches out."""
+    labels with a shape; and on every launch, whether each setting's label is full RK4's
+    (`same_label`, of `n`). quadrature_check leaves these launches out."""
     from .quadrature import cycle_by_quadrature
 
     b = Ball.paper()
@@ -234,7 +236,9 @@ def near_vertical_check(n=40, seed=5, T=20.0) -> dict:
         res = run_launches(y0, params, StepPlan(T, kw["dt"], tu), kw["method"], rtol=1e-9,
                            cycles=kw["cycles"])
         runs[name] = fields_to_si(classify(res, b.flat_face_theta_rad), b.a, tu, b.M)
-    worst = {k: {"turn_deg": 0.0, "n_sides": 0.0, "same_n": 0} for k in runs}
+    worst = {k: {"turn_deg": 0.0, "n_sides": 0.0, "same_n": 0,
+                 "same_label": int(np.sum(r["label"] == runs["rk4 full"]["label"]))}
+             for k, r in runs.items()}
     used = fixed_frame = 0
     for i in range(n):
         q = cycle_by_quadrature(math.radians(th[i]), td[i] * tu, cd[i] * tu, pd[i] * tu, p)
@@ -252,7 +256,7 @@ def near_vertical_check(n=40, seed=5, T=20.0) -> dict:
             # quadrature's n is not within 0.02 of a region's edge
             worst[k]["same_n"] += (abs(n_q - math.floor(n_q) - 0.5) < 0.02
                                    or round(r["n_sides"][i]) == round(n_q))
-    return {"launches": used, "fixed_frame": fixed_frame, **worst}
+    return {"launches": used, "fixed_frame": fixed_frame, "n": n, **worst}
 
 
 def square_launches(n: int = 256, seed: int = 0, T: float = 20.0):
@@ -395,9 +399,9 @@ def run_accuracy(out_dir="results/accuracy", quick=False, emit=print,
     emit(f"near the vertical (theta0 80-89.9 deg), quadrature vs the map's settings on "
          f"{nv['launches']} launches ({nv['fixed_frame']} in the fixed frame), largest error:")
     for k in NEAR_VERTICAL_RUNS:
-        emit(f"  {k:<14} turn per cycle {nv[k]['turn_deg']:.1e} deg, n_sides "
+        emit(f"  {k:<17} turn per cycle {nv[k]['turn_deg']:.1e} deg, n_sides "
              f"{nv[k]['n_sides']:.1e}; round(n) as the quadrature's on {nv[k]['same_n']} of "
-             f"{nv['launches']}")
+             f"{nv['launches']}; label as full rk4's on {nv[k]['same_label']} of {nv['n']}")
 
     keys = ["pos_err_m", "theta_err_rad", "energy_drift", "jellett_drift", "routh_drift", "wall_s"]
     ds = xr.Dataset(

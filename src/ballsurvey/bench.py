@@ -245,7 +245,7 @@ def _cores() -> int:
 
 
 #: the phases of a run that are kernel work (`compose.TIMES`, as `sweep -v` prints them)
-KERNEL_PHASES = ("integrate", "fixed-frame fallback", "label")
+KERNEL_PHASES = ("integrate", "fixed-frame fallback", "integrator fallback", "label")
 #: launches per axis of the spec whose fresh-process sweep measures the fixed cost (2^3 = 8)
 PROBE_N = 2
 
@@ -439,86 +439,124 @@ variables = ["label", "n_sides"]
 
 
 #: the headline map's settings by method: RK4's step and observer sample spacing
-#: (dt * observe_every), or DOP853's tolerance and first trial step (its observer reads each step)
+#: (dt * observe_every), or DOP853's tolerance and first trial step (its observer reads each step);
+#: quadrature's rtol and dt are its fallback integrator's (dop853)
 HEADLINE_RUN = {"rk4": dict(dt=2e-4, observe_every=4, rtol=1e-9),
-                "dop853": dict(dt=1e-3, observe_every=4, rtol=1e-9)}
+                "dop853": dict(dt=1e-3, observe_every=4, rtol=1e-9),
+                "quadrature": dict(dt=1e-3, observe_every=4, rtol=1e-9)}
+#: the method `bench --headline --method quadrature` times beside it, in the same command
+HEADLINE_BASELINE = {"quadrature": "dop853"}
+
+
+def _headline_map(n, T, method, backend, run, tmp, target):
+    """Sweep the headline map once (after a warm-up sweep): (wall s, CPU s, TIMES, labels, spec)."""
+    import resource
+    from pathlib import Path
+
+    import xarray as xr
+
+    from .compose import TIMES, warm_fallback
+    from .sweep import load_spec, run_sweep
+
+    path = Path(tmp) / f"headline-{method}.toml"
+    path.write_text(headline_spec(n, T=T, method=method, backend=backend, out=target, **run))
+    spec = load_spec(path)
+    warm = load_spec(path, text=headline_spec(2, T=run["dt"] * 8, method=method,
+                                              backend=backend, out=Path(tmp) / "w.nc", **run))
+    run_sweep(warm, command="bench warm-up", progress=False, force=True, parallel=True)
+    warm_fallback(Ball.paper().nondim_params())
+    TIMES.clear()
+    ru0 = resource.getrusage(resource.RUSAGE_SELF)
+    t0 = time.perf_counter()
+    run_sweep(spec, command="bench --headline", progress=None, force=True, parallel=True)
+    wall = time.perf_counter() - t0
+    times = dict(TIMES)
+    ru1 = resource.getrusage(resource.RUSAGE_SELF)
+    cpu = (ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime)
+    with xr.open_dataset(target) as ds:
+        labels = ds.label.values.ravel()
+    return wall, cpu, times, labels, spec
 
 
 def run_headline(n: int = 100, T: float = 20.0, method: str = "dop853", dt: float | None = None,
                  observe_every: int | None = None, rtol: float | None = None, sample: int = 1000,
                  sample_dt: float = 1e-4, out_file=None, out=print, seed: int = 0,
-                 backend: str = "cpu") -> dict:
+                 backend: str = "cpu", baseline: str | None = "") -> dict:
     """An n^3 (theta0, chidot0, phidot0) map at T in period mode: wall time and peak memory, then
     label agreement on `sample` random launches against full fixed-step integration to T at
     sample_dt (the accuracy report shows every label converged from 1e-3 s down). method, dt,
     observe_every, rtol: the map's run settings (None: HEADLINE_RUN's for the method). backend:
-    where the map's kernel runs (cuda: fixed-step methods; the reference stays on the CPU)."""
+    where the map's kernel runs (cuda: fixed-step methods; the reference stays on the CPU).
+    baseline: another method whose map is swept right after, in the same process, with its own
+    HEADLINE_RUN settings, its figures and agreement printed beside and the ratio of wall times
+    ("": HEADLINE_BASELINE's for the method, None: none)."""
     import resource
     import tempfile
     from pathlib import Path
 
-    import xarray as xr
-
-    from .compose import TIMES, classify, run_launches, warm_fallback
-    from .sweep import load_spec, run_sweep
+    from .compose import classify, run_launches
     from .sweep.engine import launch_table
 
     run = dict(HEADLINE_RUN[method])
     run.update({k: v for k, v in dict(dt=dt, observe_every=observe_every, rtol=rtol).items()
                 if v is not None})
     dt = run["dt"]
+    if baseline == "":
+        baseline = HEADLINE_BASELINE.get(method)
+    maps = {}
     with tempfile.TemporaryDirectory() as tmp:
         target = Path(out_file) if out_file else Path(tmp) / "headline.nc"
-        path = Path(tmp) / "headline.toml"
-        path.write_text(headline_spec(n, T=T, method=method, backend=backend, out=target, **run))
-        spec = load_spec(path)
-        warm = load_spec(path, text=headline_spec(2, T=dt * 8, method=method, backend=backend,
-                                                  out=Path(tmp) / "w.nc", **run))
-        run_sweep(warm, command="bench warm-up", progress=False, parallel=True)
-        warm_fallback(Ball.paper().nondim_params())
-        TIMES.clear()
-        ru0 = resource.getrusage(resource.RUSAGE_SELF)
-        t0 = time.perf_counter()
-        run_sweep(spec, command="bench --headline", progress=None, force=True, parallel=True)
-        wall = time.perf_counter() - t0
-        times = dict(TIMES)
-        ru1 = resource.getrusage(resource.RUSAGE_SELF)
-        cpu = (ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime)
+        maps[method] = _headline_map(n, T, method, backend, run, tmp, target)
         peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-        labels = xr.open_dataset(target).label.values.ravel()
-        rng = np.random.default_rng(seed)
-        pick = np.sort(rng.choice(labels.size, size=min(sample, labels.size), replace=False))
-        ball = Ball.paper()
-        tu = ball.time_unit
-        rows = [launch_table(spec, int(i), int(i) + 1) for i in pick]
-        col = {k: np.concatenate([r[k] for r in rows]) for k in rows[0]}
-        y0 = launch_state(col["theta0_deg"], col["thetadot0"], col["chidot0"], col["phidot0"], tu)
-        params = np.repeat(ball.nondim_params()[:, None], len(pick), 1)
-        t1 = time.perf_counter()
-        res = run_launches(y0, params, StepPlan(T, sample_dt, tu))
-        t_full = time.perf_counter() - t1
-        ref = classify(res, ball.flat_face_theta_rad)["label"]
-        agree = float(np.mean(ref == labels[pick]))
-    est_full = t_full * labels.size / len(pick)
-    how = (f"{method} at dt = {dt} s" if method in FIXED_STEP
-           else f"{method} at rtol {run['rtol']:g}")
-    out(f"ballsurvey headline: {n}^3 = {n ** 3} launches, T = {T} s, period mode (2 cycles), "
-        f"{how}, " + (f"observer every {dt * run['observe_every']:g} s, "
-                      if method in FIXED_STEP else "observer on each step, ") +
-        f"{numba.get_num_threads()} numba threads" + (", on the GPU" if backend == "cuda" else ""))
+        if baseline:
+            maps[baseline] = _headline_map(n, T, baseline, backend, dict(HEADLINE_RUN[baseline]),
+                                           tmp, Path(tmp) / "baseline.nc")
+    spec = maps[method][4]
+    size = maps[method][3].size
+    rng = np.random.default_rng(seed)
+    pick = np.sort(rng.choice(size, size=min(sample, size), replace=False))
+    ball = Ball.paper()
+    tu = ball.time_unit
+    rows = [launch_table(spec, int(i), int(i) + 1) for i in pick]
+    col = {k: np.concatenate([r[k] for r in rows]) for k in rows[0]}
+    y0 = launch_state(col["theta0_deg"], col["thetadot0"], col["chidot0"], col["phidot0"], tu)
+    params = np.repeat(ball.nondim_params()[:, None], len(pick), 1)
+    t1 = time.perf_counter()
+    res = run_launches(y0, params, StepPlan(T, sample_dt, tu))
+    t_full = time.perf_counter() - t1
+    ref = classify(res, ball.flat_face_theta_rad)["label"]
+    agree = {m: float(np.mean(ref == v[3][pick])) for m, v in maps.items()}
+    wall, cpu, times = maps[method][:3]
+    est_full = t_full * size / len(pick)
     threads = numba.get_num_threads()
-    out(f"  wall time {wall:.1f} s ({n ** 3 / wall:.0f} launches/s), CPU use "
-        f"{100 * cpu / wall:.0f} % ({cpu / wall / threads:.0%} of {threads} threads), "
-        f"peak memory {peak_mb:.0f} MB")
-    out(f"    of which {phases_text(times, 1)}, the rest (launch tables, parts, netCDF) "
-        f"{wall - in_line(times):.1f} s")
-    out(f"  labels agree with full integration (T = {T} s, dt = {sample_dt} s) on {len(pick)} "
-        f"random launches: {100 * agree:.1f} %")
+
+    def how(m, r):
+        return (f"{m} at dt = {r['dt']} s" if m in FIXED_STEP else f"{m} at rtol {r['rtol']:g}"
+                if m != "quadrature" else
+                f"{m} (integrator fallback: dop853 at rtol {r['rtol']:g})")
+
+    out(f"ballsurvey headline: {n}^3 = {n ** 3} launches, T = {T} s, period mode (2 cycles), "
+        f"{how(method, run)}, " + (f"observer every {dt * run['observe_every']:g} s, "
+                                   if method in FIXED_STEP else "") +
+        f"{threads} numba threads" + (", on the GPU" if backend == "cuda" else ""))
+    for m, (w, c, t, _, _) in maps.items():
+        lead = "  " if m == method else f"  baseline, {how(m, HEADLINE_RUN[m])}, same run: "
+        out(f"{lead}wall time {w:.1f} s ({n ** 3 / w:.0f} launches/s), CPU use "
+            f"{100 * c / w:.0f} % ({c / w / threads:.0%} of {threads} threads)"
+            + (f", peak memory {peak_mb:.0f} MB" if m == method else ""))
+        out(f"    of which {phases_text(t, 1)}, the rest (launch tables, parts, netCDF) "
+            f"{w - in_line(t):.1f} s")
+        out(f"    labels agree with full integration (T = {T} s, dt = {sample_dt} s) on "
+            f"{len(pick)} random launches: {100 * agree[m]:.1f} %")
+    if baseline:
+        out(f"  speed-up of {method} over {baseline}: {maps[baseline][0] / wall:.1f}x (wall time)")
     out(f"  full integration of the whole map would take about {est_full / 60:.0f} min "
         f"({est_full / wall:.0f}x)")
-    return {"wall_s": wall, "cpu_s": cpu, "peak_mb": peak_mb, "agreement": agree,
+    return {"wall_s": wall, "cpu_s": cpu, "peak_mb": peak_mb, "agreement": agree[method],
             "full_estimate_s": est_full, "method": method, "backend": backend, "times": times,
-            **run}
+            "baseline": ({"method": baseline, "wall_s": maps[baseline][0],
+                          "agreement": agree[baseline], "times": maps[baseline][2]}
+                         if baseline else None), **run}
 
 
 def run_period_bench(n: int = 40, T: float = 20.0, dt: float = 1e-4, out=print) -> dict:

@@ -26,6 +26,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .ball import flat_face_theta_of, nondim_params_of
+from .classify import cycle
 from .classify.labels import CODE, Thresholds, label_fields
 from .classify.observer import N_OBS, O_DE, O_E0, O_TH_MAX, O_TH_MIN, cycles_done, observe
 from .classify.step_observer import observe_start, observe_step
@@ -63,8 +64,12 @@ OBSERVER = Observer(record=observe, done=cycles_done)
 STEP_OBSERVER = StepObserver(start=observe_start, step=observe_step, done=cycles_done)
 #: methods for one trajectory (`run_trajectory`, `simulate`)
 METHODS = tuple(FIXED_STEP) + tuple(ADAPTIVE)
-#: methods for a map (`run_launches`): those, and the adaptive pairs on SIMD lanes
-MAP_METHODS = METHODS + tuple(LANE_ADAPTIVE)
+#: the map method with no time stepping: each launch's cycle by quadrature from its invariants
+#: (`classify.cycle`), the launches it cannot do integrated by `QUADRATURE_FALLBACK`
+QUADRATURE = "quadrature"
+QUADRATURE_FALLBACK = "dop853"
+#: methods for a map (`run_launches`): those, the adaptive pairs on SIMD lanes, and quadrature
+MAP_METHODS = METHODS + tuple(LANE_ADAPTIVE) + (QUADRATURE,)
 FALLBACK_RTOL = 1e-10
 FALLBACK_ATOL = 1e-12
 FALLBACK_H_INIT = 1e-3  #: the fixed-frame re-run's first trial step (non-dimensional)
@@ -139,16 +144,21 @@ def fixed_frame_fallback(y0, params, T_nd, res: oc.Result, *, thresholds=Thresho
     return bad
 
 
-def warm_fallback(params_col, parallels=(True, False)) -> None:
-    """Compile (or load from the disk cache) the fixed-frame fallback kernels, parallel and
-    serial (`parallels`), on two short launches: a benchmark's warm-up run rarely has a launch
-    that needs them, and their first compilation would be timed as fallback."""
+def warm_fallback(params_col, parallels=(True, False), quadrature: bool = True) -> None:
+    """Compile (or load from the disk cache) the fallback kernels (the fixed-frame re-run's and,
+    with `quadrature`, the quadrature map's integrator), parallel and serial (`parallels`), on
+    two short launches: a benchmark's warm-up run rarely has a launch that needs them, and their
+    first compilation would be timed as fallback."""
     from .physics.fast import fast_state
 
     y0 = fast_state(0.0, 0.0, np.radians([10.0, 20.0]), 0.0, 0.0, 0.0, 1.0, -1.0)
     p = np.repeat(np.asarray(params_col, dtype=float).reshape(3, 1), 2, axis=1)
     for parallel in parallels:
         _fixed_frame(y0, p, 1e-3, parallel=parallel)
+        if quadrature:
+            lanes.integrate_observed(y0, p, 1e-3, observer=STEP_OBSERVER, n_slots=N_OBS,
+                                     method=QUADRATURE_FALLBACK, parallel=parallel,
+                                     stop_after=3)
 
 
 #: the helper process compiling the fixed-frame fallback beside this one (`prefetch_fallback`)
@@ -201,7 +211,7 @@ def prefetch_fallback(parallel: bool) -> None:
     path = os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")]))
     parallels = (False, True) if parallel else (False,)
     code = ("from ballsurvey.ball import Ball; from ballsurvey.compose import warm_fallback; "
-            f"warm_fallback(Ball.paper().nondim_params(), {parallels})")
+            f"warm_fallback(Ball.paper().nondim_params(), {parallels}, quadrature=False)")
     _HELPER.append(subprocess.Popen([sys.executable, "-c", code],
                                     env=dict(os.environ, PYTHONPATH=path),
                                     stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
@@ -239,10 +249,12 @@ def run_launches(y0, params, plan: StepPlan, method="rk4", *, rtol=1e-9, atol=1e
     (period mode): each launch stops once the observer has seen that many complete theta
     cycles; T is then the longest it may run.
     fallback: launches `needs_fallback` names (with `thresholds`) are run again in the fixed
-    frame. backend "cuda": the fixed-step kernel on the GPU (`integrate.cuda`); the fixed-frame
+    frame. method "quadrature": no time stepping (`by_quadrature`). backend "cuda": the
+    fixed-step kernel on the GPU (`integrate.cuda`); the fixed-frame
     fallback of the few launches that need it runs on the CPU."""
     stop = stop_target(cycles)
     t0 = time.perf_counter()
+    fb0 = TIMES["integrator fallback"]  # by_quadrature's fallback, counted apart
     if backend == "cuda":
         from .integrate import cuda
 
@@ -263,14 +275,45 @@ def run_launches(y0, params, plan: StepPlan, method="rk4", *, rtol=1e-9, atol=1e
                                        observer=STEP_OBSERVER, n_slots=N_OBS, method=method,
                                        lanes=block, h_init=plan.h_init_nd, parallel=parallel,
                                        stop_after=stop)
+    elif method == QUADRATURE:
+        res = by_quadrature(y0, params, plan, rtol=rtol, atol=atol, block=block,
+                            parallel=parallel, stop=stop, thresholds=thresholds)
     else:
         raise ValueError(f"unknown method {method!r}; known: {', '.join(MAP_METHODS)}")
     t1 = time.perf_counter()
-    TIMES["integrate"] += t1 - t0
+    TIMES["integrate"] += t1 - t0 - (TIMES["integrator fallback"] - fb0)
     if fallback:
         fixed_frame_fallback(y0, params, plan.T_nd, res, thresholds=thresholds,
                              parallel=parallel, stop_after=stop)
         TIMES["fixed-frame fallback"] += time.perf_counter() - t1
+    return res
+
+
+def by_quadrature(y0, params, plan: StepPlan, *, rtol=1e-9, atol=1e-12, block=64,
+                  parallel=True, stop=0, thresholds: Thresholds = Thresholds()) -> oc.Result:
+    """Launches by quadrature (`classify.cycle`): the observer's record of each from its
+    invariants, formulation QUADRATURE; those it cannot do (tilt through the vertical, launched
+    steady, quadrature not converged) integrated by QUADRATURE_FALLBACK at rtol, atol in the
+    fixed frame (their formulation says so; `TIMES['integrator fallback']`)."""
+    n = y0.shape[1]
+    obs, status = cycle.cycles_by_quadrature(y0, params, plan.T_nd, stop_after=stop,
+                                             steady_tol=thresholds.steady_rate_tol,
+                                             block=block, parallel=parallel)
+    res = oc.Result(obs=obs, outcome=np.zeros(n, dtype=np.int8), t_stop=np.full(n, np.nan),
+                    formulation=np.full(n, oc.QUADRATURE, dtype=np.int8),
+                    y_end=np.full((y0.shape[0], n), np.nan), n_steps=np.zeros(n, dtype=np.int64),
+                    t=np.array([float(plan.T_nd)]), traj=np.empty((0, n)))
+    bad = np.flatnonzero(status != cycle.DONE)
+    if bad.size:
+        t0 = time.perf_counter()
+        r2 = lanes.integrate_observed(y0[:, bad], params[:, bad], plan.T_nd, rtol, atol,
+                                      observer=STEP_OBSERVER, n_slots=N_OBS,
+                                      method=QUADRATURE_FALLBACK, lanes=block,
+                                      h_init=plan.h_init_nd, parallel=parallel and bad.size > 1,
+                                      stop_after=stop)
+        for name in ("obs", "outcome", "t_stop", "formulation", "n_steps", "y_end"):
+            getattr(res, name)[..., bad] = getattr(r2, name)
+        TIMES["integrator fallback"] += time.perf_counter() - t0
     return res
 
 

@@ -136,9 +136,11 @@ def run_settings(ds: xr.Dataset) -> RunSettings:
     if not m.recorded:
         note = ("the map records no method or step: this launch is integrated with "
                 f"{method}, step {m.dt:g} s")
-    if method not in METHODS:  # an adaptive pair on SIMD lanes: one launch takes dopri5
-        note = (f"the map's {method} integrates ensembles only: this launch is integrated with "
-                f"dopri5 at the map's rtol and atol")
+    if method not in METHODS:  # an adaptive pair on SIMD lanes, or quadrature: dopri5
+        how = ("computes one theta cycle, no path" if method == "quadrature"
+               else "integrates ensembles only")
+        note = (f"the map's {method} {how}: this launch is integrated with dopri5 at the map's "
+                f"rtol and atol")
         method = "dopri5"
     try:
         replay_steps(m.T, m.dt, method in FIXED_STEP, "attribute run_dt_s",

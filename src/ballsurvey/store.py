@@ -14,6 +14,7 @@ from contextlib import contextmanager, nullcontext
 import numpy as np
 
 from .classify.labels import CORNER_KINDS, LABELS
+from .integrate.outcome import FORMULATIONS
 
 CONVENTIONS = "CF-1.10"
 REFERENCES = ("M. S. Wheatland, R. C. Cross et al., Rolling along a square path: the dynamics of "
@@ -33,9 +34,10 @@ RESULT_VARIABLES = {
                                        "(ballsurvey.quadrature.launch_cycle gives it)"}),
     "chord_turn_per_cycle_deg": ("f8", "degree",
                                  "mean rotation of the chord between successive theta maxima", {}),
-    "formulation": ("i1", None, "equations the launch was integrated with",
-                    {"flag_values": np.arange(2, dtype=np.int8),
-                     "flag_meanings": "euler_angles fixed_frame"}),
+    "formulation": ("i1", None, "equations the launch was integrated with (quadrature: none, "
+                    "its theta cycle from the conserved quantities)",
+                    {"flag_values": np.arange(len(FORMULATIONS), dtype=np.int8),
+                     "flag_meanings": " ".join(FORMULATIONS)}),
     "theta_period_s": ("f8", "s", "period of the tilt theta", {}),
     "side_m": ("f8", "m", "polygon side: distance between successive theta minima (corners)", {}),
     "chord_m": ("f8", "m", "chord between successive theta maxima (mid-side to mid-side)", {}),

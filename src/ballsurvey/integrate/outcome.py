@@ -19,10 +19,12 @@ STEP_BUDGET = 3  #: the adaptive pair used up its step budget before T
 STEP_UNDERFLOW = 4  #: the adaptive pair's step fell below its floor before T
 OUTCOMES = ("ok", "nonfinite", "chart_singular", "step_budget", "step_underflow")
 
-#: formulation codes (int8), as stored in `formulation` (`euler_angles fixed_frame`)
+#: formulation codes (int8), as stored in `formulation` (`euler_angles fixed_frame quadrature`;
+#: quadrature: no integration, the launch's cycle from its invariants, `classify.cycle`)
 EULER_ANGLES = 0
 FIXED_FRAME = 1
-FORMULATIONS = ("euler_angles", "fixed_frame")
+QUADRATURE = 2
+FORMULATIONS = ("euler_angles", "fixed_frame", "quadrature")
 
 
 class Result(NamedTuple):

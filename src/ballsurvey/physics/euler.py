@@ -78,12 +78,17 @@ def rhs(u, p, out):
 
 
 @jit
-def energy(sth, cth, thd, chd, phd, c, A, B):
-    """E = T + V, Eqs. (11)-(12) (V = M g (a - c sin theta), corrected)."""
+def kinetic(sth, cth, thd, chd, phd, c, A, B):
+    """T, the kinetic energy of Eq. (11)."""
     w_eta = phd - chd * sth
     t = 0.5 * A * (thd * thd + chd * chd * cth * cth) + 0.5 * B * w_eta * w_eta
-    t += 0.5 * ((phd - c * chd) ** 2 * cth * cth + (1.0 - 2.0 * c * sth + c * c) * thd * thd)
-    return t + (1.0 - c * sth)
+    return t + 0.5 * ((phd - c * chd) ** 2 * cth * cth + (1.0 - 2.0 * c * sth + c * c) * thd * thd)
+
+
+@jit
+def energy(sth, cth, thd, chd, phd, c, A, B):
+    """E = T + V, Eqs. (11)-(12) (V = M g (a - c sin theta), corrected)."""
+    return kinetic(sth, cth, thd, chd, phd, c, A, B) + (1.0 - c * sth)
 
 
 @jit

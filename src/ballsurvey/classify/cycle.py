@@ -1,0 +1,496 @@
+"""The classifier's record of each launch from its invariants, by quadrature over one theta cycle.
+
+No time stepping. With the energy E, Jellett's J and Routh's R fixed by the launch, every rate is a
+function of theta alone (docs/physics.md section 6), theta oscillates between the roots
+theta_min < theta_max of thetadot^2 = F(theta), and each theta cycle repeats the last one turned by
+the turn per cycle about the orbit centre. So one half cycle, from theta_min up to theta_max, holds
+everything the labels need; the other half is its mirror image (theta(t) is symmetric about its
+extrema: the path is mirror-symmetric about the line through G at a theta extremum, across the
+heading there).
+
+Turning points. From the launch (a turning point itself when thetadot0 = 0: the sign of
+thetaddot0 says which), F is followed outward in steps of 2, 4, then 8 deg until it changes sign
+(a tilt that reaches the vertical, +-90 deg less 1e-13, is left to the integrator), and the root
+is solved by Newton's method on F with its exact derivative F' = 2 thetaddot(theta, thetadot =
+sqrt F), kept inside the bracket by bisection, to rounding.
+
+Quadrature. With theta = m + h sin s (m, h: the middle and half-range), s in [-pi/2, pi/2] runs the
+rising half cycle, dt/ds = h cos s / sqrt(F) is smooth (its value at the ends, sqrt(h /
+|thetaddot|), is the limit) and so is every integrand below. They are integrated by Clenshaw-Curtis
+quadrature on N + 1 Chebyshev-Lobatto points in s (spectral for smooth integrands, and the points
+cluster at the turning points, where the tilt's approach to the vertical makes the integrands' only
+sharp feature), N = 16, 32, ..., 512, nested (each level reuses the last's points) until the period
+and the turn of two successive levels agree to `QUAD_RTOL` and `TURN_TOL` (relative; absolute in
+rad for a turn under 1 rad; no tighter than F's own rounding allows: `NOISE_FACTOR`); not converged
+at 512: left to the integrator. The period and turn are the last level's; the path is taken at the
+level before (its period and turn agree with the last's to those tolerances): there the cumulative
+integrals (Chebyshev integration matrix) give, at every point, the time, the heading chi (from
+chidot) and G's position (from its velocity, in the heading frame turned by chi).
+
+From them, per launch, the observer's slots (`observer.SLOTS`) are filled as the stepping observer
+would fill them after the same number of theta maxima, so the one labeller (`labels.label_fields`)
+labels either: theta range, period and turn per cycle (exact, not differenced between events),
+chord and side (G at the extrema: the side is the distance between G at theta_min and its mirror
+image), the orbit centre (fixed point of the rotation by the turn that maps one minimum onto the
+next), the least and largest distance from it over the half cycle (= over the whole orbit), and
+over the cycle the peak path heading rate, the total absolute heading change (the variation of the
+path's heading over the points), the least and mean speed, the velocity's winding relative to the
+heading (from the sign of the forward speed at the two turning points: the velocity stays in one
+half-plane over each half cycle), the least normal force and the largest friction demand (functions
+of theta alone). Extrema over the points are refined by the parabola through the best point and its
+two neighbours (the functions are even about the turning points, so an extremum there is exact).
+The invariants do not drift (0 is recorded). The count of theta maxima in T (capped at the period
+mode's target) comes from the time of the first maximum after the launch.
+
+Status per launch (`DONE`, or why the integrator must do it): `STEADY` (|thetadot0| and
+|thetaddot0| below the classifier's steady_rate_tol), `VERTICAL` (theta reaches +-90 deg),
+`UNCONVERGED` (the quadrature did not converge, or F was not positive where it must be).
+"""
+from __future__ import annotations
+
+import math
+from functools import cache
+
+import numba as nb
+import numpy as np
+
+from .._jit import njit
+from ..physics.euler import accelerations, heading_velocity, jellett, kinetic, normal_force, routh
+from . import observer as ob
+
+jit = njit(cache=True, nogil=True, error_model="numpy")  # stamped cache: _jit.py
+
+#: status codes per launch
+DONE, STEADY, VERTICAL, UNCONVERGED = 0, 1, 2, 3
+STATUSES = ("done", "steady", "vertical", "unconverged")
+#: Clenshaw-Curtis levels: N = FIRST_N, 2 FIRST_N, ... MAX_N intervals over the half cycle
+FIRST_N, LEVELS = 16, 6
+MAX_N = FIRST_N << (LEVELS - 1)
+#: agreement of the period (relative) and of the half cycle's turn (relative, absolute in rad
+#: below 1 rad) between two successive levels. The turn's is wider: near the vertical chidot
+#: reaches 1e3 and the rounding of F close to the turning points (a difference of terms 1e6
+#: times larger) leaves it 1e-9 of noise (the integrals are then as good as that: 4e-7 deg)
+QUAD_RTOL, TURN_TOL = 1e-9, 5e-9
+#: where F is small everywhere (an oscillation of a fraction of a degree), its rounding (ulps of
+#: the energy's terms, S) is a larger part of it: the tolerances are then at least NOISE_FACTOR
+#: times the relative rounding of F halfway, eps S / F(m), and at most NOISE_CAP
+NOISE_FACTOR, NOISE_CAP = 100.0, 1e-6
+#: the vertical less a hair: a tilt whose F is still positive there goes through it
+TILT_LIMIT = 0.5 * math.pi * (1.0 - 1e-13)
+#: first step of the outward search for a turning point, and its largest (rad)
+SEARCH_STEP, SEARCH_STEP_MAX = math.radians(2.0), math.radians(8.0)
+#: a launch at rest in theta starts its search this far inside (rad)
+START_OFFSET = 1e-9
+#: per-point scratch columns
+_TH, _TAU, _CHD, _PHD, _THD = range(5)
+N_SCRATCH = 5
+
+
+@cache
+def tables():
+    """(s, sin s, cos s at the finest level's MAX_N + 1 points; weights (LEVELS, MAX_N + 1):
+    level L's Clenshaw-Curtis weights in s at the finest level's indices (0 elsewhere);
+    cumulative integration matrices of all levels, flat, and their offsets). Level L's point j
+    is the finest level's point j * (MAX_N >> (L + log2 FIRST_N))."""
+    from numpy.polynomial import chebyshev as ch
+
+    k = np.arange(MAX_N + 1)
+    s = -0.5 * math.pi * np.cos(math.pi * k / MAX_N)
+    s[MAX_N // 2] = 0.0
+    weights = np.zeros((LEVELS, MAX_N + 1))
+    mats, offsets = [], np.zeros(LEVELS + 1, dtype=np.int64)
+    for L in range(LEVELS):
+        n = FIRST_N << L
+        x = -np.cos(math.pi * np.arange(n + 1) / n)
+        vinv = np.linalg.inv(ch.chebvander(x, n))
+        q = ch.chebvander(x, n + 1) @ ch.chebint(vinv, lbnd=-1.0, axis=0) * (0.5 * math.pi)
+        q[0] = 0.0
+        weights[L, ::MAX_N // n] = q[-1]
+        mats.append(q.ravel())
+        offsets[L + 1] = offsets[L] + q.size
+    return (s, np.sin(s), np.cos(s), weights, np.concatenate(mats), offsets)
+
+
+@jit
+def _rates(th, E, J, R, c, A, B):
+    """(sin, cos, chidot, phidot, F = thetadot^2) at tilt th from the invariants (E: the energy
+    less M g a)."""
+    sth, cth = math.sin(th), math.cos(th)
+    w = R / math.sqrt(A * B + A * cth * cth + B * (sth - c) ** 2)
+    chc = (B * w * (sth - c) - J) / (A * cth)  # chidot cos(theta): bounded at the vertical
+    chd = chc / cth
+    phd = w + chd * sth
+    # the energy at thetadot = 0 (`kinetic` less c sin theta) from w and chidot cos(theta),
+    # not from phidot - chidot sin(theta), which loses |chidot| ulps near the vertical
+    fwd = w * cth + chc * (sth - c)  # (phidot - c chidot) cos(theta)
+    u = 0.5 * (A * chc * chc + B * w * w + fwd * fwd) - c * sth
+    return sth, cth, chd, phd, 2.0 * (E - u) / (A + 1.0 - 2.0 * c * sth + c * c)
+
+
+@jit
+def _F(th, E, J, R, c, A, B):
+    return _rates(th, E, J, R, c, A, B)[4]
+
+
+@jit
+def _F_dF(th, E, J, R, c, A, B):
+    """F and its derivative 2 thetaddot(th, thetadot = sqrt F) (thetaddot depends on thetadot^2
+    only)."""
+    sth, cth, chd, phd, f = _rates(th, E, J, R, c, A, B)
+    thdd = accelerations(sth, cth, math.sqrt(max(f, 0.0)), chd, phd, c, A, B)[0]
+    return f, 2.0 * thdd
+
+
+@jit
+def _root(a, b, E, J, R, c, A, B):
+    """The sign change of F between a (F > 0) and b (F <= 0): Newton kept in the bracket by
+    bisection."""
+    x = a
+    for _ in range(200):
+        f, df = _F_dF(x, E, J, R, c, A, B)
+        if f > 0.0:
+            a = x
+        else:
+            b = x
+        nx = x - f / df if df != 0.0 else 0.5 * (a + b)
+        lo, hi = min(a, b), max(a, b)
+        newton = lo < nx < hi and math.isfinite(nx)
+        if not newton:
+            nx = 0.5 * (a + b)
+        # a Newton step this short leaves an error of order its square: rounding
+        if (newton and abs(nx - x) <= 1e-12 * max(1.0, abs(x))) or nx == x \
+                or abs(b - a) <= 4e-16 * max(1.0, abs(x)):
+            return nx
+        x = nx
+    return x
+
+
+@jit
+def _turning_point(start, d, E, J, R, c, A, B):
+    """The first root of F from start (F > 0 there) in direction d (+-1); NaN where the tilt
+    reaches the vertical."""
+    a, step = start, SEARCH_STEP
+    while True:
+        b = a + d * step
+        if abs(b) >= TILT_LIMIT:
+            b = d * TILT_LIMIT
+            if _F(b, E, J, R, c, A, B) > 0.0:
+                return math.nan
+            return _root(a, b, E, J, R, c, A, B)
+        if _F(b, E, J, R, c, A, B) <= 0.0:
+            return _root(a, b, E, J, R, c, A, B)
+        a, step = b, min(2.0 * step, SEARCH_STEP_MAX)
+
+
+@jit
+def _end_tau(th, h, E, J, R, c, A, B):
+    """dt/ds at a turning point: the limit sqrt(h / |thetaddot|)."""
+    sth, cth, chd, phd, _ = _rates(th, E, J, R, c, A, B)
+    thdd = accelerations(sth, cth, 0.0, chd, phd, c, A, B)[0]
+    return math.sqrt(h / abs(thdd)), chd, phd
+
+
+@jit
+def _extremum(s, f, j, n, sign):
+    """f's extremum near point j of n + 1 (sign +1: largest, -1: least) on the parabola through
+    points j - 1, j, j + 1; at an end point f[j] (f is even about the ends)."""
+    if j == 0 or j == n:
+        return f[j]
+    x0, x1, x2 = s[j - 1], s[j], s[j + 1]
+    d01 = (f[j] - f[j - 1]) / (x1 - x0)
+    d12 = (f[j + 1] - f[j]) / (x2 - x1)
+    a = (d12 - d01) / (x2 - x0)
+    if sign * a >= 0.0:
+        return f[j]
+    xs = 0.5 * (x0 + x1) - d01 / (2.0 * a)
+    if not (x0 <= xs <= x2):
+        return f[j]
+    v = f[j - 1] + d01 * (xs - x0) + a * (xs - x0) * (xs - x1)
+    return max(f[j], v) if sign > 0 else min(f[j], v)
+
+
+@jit
+def _argext(f, n, sign):
+    best, jb = sign * f[0], 0
+    for j in range(1, n + 1):
+        if sign * f[j] > best:
+            best, jb = sign * f[j], j
+    return jb
+
+
+@jit
+def _cumulate(qm, off, n, f, out):
+    """out[j] = integral of f from the first point to point j (level matrix at qm[off:])."""
+    m = n + 1
+    for j in range(m):
+        acc = 0.0
+        row = off + j * m
+        for k in range(m):
+            acc += qm[row + k] * f[k]
+        out[j] = acc
+
+
+@jit
+def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, sin_s, cos_s,
+              weights, qm, offsets, scr, node, obs, i):
+    """Launch i (non-dimensional tilt, rates) -> its observer slots obs[:, i]; returns a status.
+    scr (N_SCRATCH, MAX_N + 1) and node (15, MAX_N + 1): scratch."""
+    s0, c0 = math.sin(th0), math.cos(th0)
+    # the energy less its constant M g a: F is a small difference near the turning points
+    kin = kinetic(s0, c0, thd0, chd0, phd0, c, A, B)
+    E = kin - c * s0
+    scale = kin + c * abs(s0)  # the size of the terms F is a difference of
+    J = jellett(s0, c0, thd0, chd0, phd0, c, A, B)
+    R = routh(s0, c0, thd0, chd0, phd0, c, A, B)
+    thdd0 = accelerations(s0, c0, thd0, chd0, phd0, c, A, B)[0]
+    if abs(thd0) < steady_tol and abs(thdd0) < steady_tol:
+        return STEADY
+    # --- turning points ----------------------------------------------------------------------
+    if thd0 == 0.0:
+        d = 1.0 if thdd0 > 0.0 else -1.0
+        start = th0 + d * START_OFFSET
+        if not _F(start, E, J, R, c, A, B) > 0.0:
+            return UNCONVERGED
+        other = _turning_point(start, d, E, J, R, c, A, B)
+        if not math.isfinite(other):
+            return VERTICAL
+        lo, hi = (th0, other) if d > 0.0 else (other, th0)
+    else:
+        if not _F(th0, E, J, R, c, A, B) > 0.0:
+            return UNCONVERGED
+        lo = _turning_point(th0, -1.0, E, J, R, c, A, B)
+        hi = _turning_point(th0, 1.0, E, J, R, c, A, B)
+        if not (math.isfinite(lo) and math.isfinite(hi)):
+            return VERTICAL
+    m, h = 0.5 * (hi + lo), 0.5 * (hi - lo)
+    if not h > 0.0:
+        return UNCONVERGED
+    # --- nested Clenshaw-Curtis levels until period and turn converge --------------------------
+    per_prev, turn_prev = math.nan, math.nan
+    level = -1
+    tol_p, tol_t = QUAD_RTOL, TURN_TOL
+    for L in range(LEVELS):
+        n = FIRST_N << L
+        stride = MAX_N // n
+        for j in range(n + 1):
+            if L > 0 and j % 2 == 0:
+                continue  # computed at the last level
+            k = j * stride
+            if k == 0 or k == MAX_N:
+                th = lo if k == 0 else hi
+                tau, chd, phd = _end_tau(th, h, E, J, R, c, A, B)
+                thd = 0.0
+            else:
+                th = m + h * sin_s[k]
+                _, _, chd, phd, f = _rates(th, E, J, R, c, A, B)
+                if not f > 0.0:
+                    return UNCONVERGED
+                thd = math.sqrt(f)
+                tau = h * cos_s[k] / thd
+            scr[_TH, k], scr[_TAU, k], scr[_CHD, k] = th, tau, chd
+            scr[_PHD, k], scr[_THD, k] = phd, thd
+        if L == 0:  # F halfway against the energy's terms: the rounding floor
+            noise = 2.2e-16 * scale / scr[_THD, MAX_N // 2] ** 2
+            tol_p = max(QUAD_RTOL, min(NOISE_CAP, NOISE_FACTOR * noise))
+            tol_t = max(TURN_TOL, min(NOISE_CAP, NOISE_FACTOR * noise))
+        per, turn = 0.0, 0.0
+        for j in range(n + 1):
+            k = j * stride
+            wt = weights[L, k] * scr[_TAU, k]
+            per += wt
+            turn += wt * scr[_CHD, k]
+        if (L > 0 and abs(per - per_prev) <= tol_p * per
+                and abs(turn - turn_prev) <= tol_t * max(1.0, abs(turn))):
+            level = L
+            break
+        per_prev, turn_prev = per, turn
+    if level < 0 or not (math.isfinite(per) and math.isfinite(turn)):
+        return UNCONVERGED
+    # --- the path at the level before (its period and turn agree with this one's to
+    # QUAD_RTOL): every point's rates, then the cumulative integrals -------------------------
+    per_fine, turn_fine = per, turn
+    level -= 1
+    n = FIRST_N << level
+    stride = MAX_N // n
+    ss, tau_c, chd_tau, u_a, w_tau, psid_a, speed_a, fric_a, norm_a = (
+        node[0], node[1], node[2], node[3], node[4], node[5], node[6], node[7], node[8])
+    chi_a, x_a, y_a, fx, fy, w_a = node[9], node[10], node[11], node[12], node[13], node[14]
+    for j in range(n + 1):
+        k = j * stride
+        th, tau, chd = scr[_TH, k], scr[_TAU, k], scr[_CHD, k]
+        phd, thd = scr[_PHD, k], scr[_THD, k]
+        sth, cth = math.sin(th), math.cos(th)
+        thdd, chdd, phdd = accelerations(sth, cth, thd, chd, phd, c, A, B)
+        u, w = heading_velocity(sth, cth, thd, chd, phd, c)
+        v2 = u * u + w * w
+        a1 = 1.0 - c * sth
+        ud = (phdd - c * chdd) * cth - (phd - c * chd) * sth * thd
+        wd = -c * cth * thd * thd + a1 * thdd
+        psid = chd + (u * wd - w * ud) / v2 if v2 > 0.0 else chd
+        ah_par, ah_perp = ud - w * chd, wd + u * chd
+        normal = normal_force(sth, cth, thd, thdd, c)
+        fric = (math.sqrt(ah_par * ah_par + ah_perp * ah_perp) / normal if normal > 0.0
+                else math.inf)
+        ss[j] = s_all[k]
+        tau_c[j] = tau
+        chd_tau[j] = chd * tau
+        u_a[j] = u
+        w_tau[j] = a1 * h * cos_s[k]  # w dt/ds = a' dtheta/ds on the rising half
+        w_a[j] = w
+        psid_a[j] = abs(psid)
+        speed_a[j] = math.sqrt(v2)
+        fric_a[j] = fric
+        norm_a[j] = normal
+    off = offsets[level]
+    _cumulate(qm, off, n, chd_tau, chi_a)
+    for j in range(n + 1):
+        cc, sc = math.cos(chi_a[j]), math.sin(chi_a[j])
+        fx[j] = u_a[j] * cc * tau_c[j] - w_tau[j] * sc
+        fy[j] = u_a[j] * sc * tau_c[j] + w_tau[j] * cc
+    _cumulate(qm, off, n, fx, x_a)
+    _cumulate(qm, off, n, fy, y_a)
+    period, dchi = 2.0 * per_fine, 2.0 * turn_fine
+    v_int = 0.0
+    for j in range(n + 1):
+        v_int += weights[level, j * stride] * tau_c[j] * speed_a[j]
+    # the path heading's total absolute change over the half cycle: its variation over the
+    # points, psi = chi + the velocity's direction in the heading frame (exact where psi is
+    # monotone between points; a quadrature of |psidot| would miss the spikes at a cusp)
+    t_turn = 0.0
+    psi_prev = chi_a[0] + math.atan2(w_a[0], u_a[0])
+    for j in range(1, n + 1):
+        psi = chi_a[j] + math.atan2(w_a[j], u_a[j])
+        dpsi = psi - psi_prev
+        t_turn += abs(dpsi - 2.0 * math.pi * math.floor((dpsi + math.pi) / (2.0 * math.pi)))
+        psi_prev = psi
+    # --- the orbit: G at theta_max, the next minimum (the mirror of the first), the centre -----
+    xm, ym = x_a[n], y_a[n]
+    ex, ey = math.cos(chi_a[n]), math.sin(chi_a[n])
+    along = xm * ex + ym * ey
+    bx, by = 2.0 * along * ex, 2.0 * along * ey  # G at the next minimum (G at the first: 0)
+    cd, sd = math.cos(dchi), math.sin(dchi)
+    det = 2.0 * (1.0 - cd)
+    if det > 0.0:
+        rcx = ((1.0 - cd) * bx - sd * by) / det
+        rcy = (sd * bx + (1.0 - cd) * by) / det
+    else:
+        rcx = rcy = math.nan
+    for j in range(n + 1):
+        fx[j] = math.sqrt((x_a[j] - rcx) ** 2 + (y_a[j] - rcy) ** 2)
+    r_min = _extremum(ss, fx, _argext(fx, n, -1.0), n, -1.0)
+    r_max = _extremum(ss, fx, _argext(fx, n, 1.0), n, 1.0)
+    # --- theta maxima within T (period mode: at most stop_after) -----------------------------
+    if thd0 == 0.0:
+        t1 = period if th0 == hi else 0.5 * period
+    else:
+        # time from theta_min up to the launch: the cumulative time interpolated at the
+        # launch's s (barycentric, Chebyshev-Lobatto)
+        _cumulate(qm, off, n, tau_c, fy)
+        s_l = math.asin(max(-1.0, min(1.0, (th0 - m) / h)))
+        num = den = 0.0
+        t_l = math.nan
+        for j in range(n + 1):
+            dx = s_l - ss[j]
+            wb = (-1.0 if j % 2 else 1.0) * (0.5 if j == 0 or j == n else 1.0)
+            if dx == 0.0:
+                t_l = fy[j]
+                break
+            num += wb / dx * fy[j]
+            den += wb / dx
+        if not math.isfinite(t_l):
+            t_l = num / den
+        t1 = 0.5 * period - t_l if thd0 > 0.0 else t_l + 0.5 * period
+    n_max = 0.0
+    if t1 <= T:
+        n_max = math.floor((T - t1) / period) + 1.0
+    if stop_after > 0:
+        n_max = min(n_max, float(stop_after))
+    n_cyc = max(n_max - 1.0, 0.0)
+    # --- the observer's slots -----------------------------------------------------------------
+    for q in range(ob.N_OBS):
+        obs[q, i] = math.nan
+    obs[ob.O_TH_MIN, i], obs[ob.O_TH_MAX, i] = lo, hi
+    obs[ob.O_E0, i], obs[ob.O_J0, i], obs[ob.O_R0, i] = E + 1.0, J, R
+    obs[ob.O_DE, i] = obs[ob.O_DJ, i] = obs[ob.O_DR, i] = 0.0
+    obs[ob.O_FRIC, i] = _extremum(ss, fric_a, _argext(fric_a, n, 1.0), n, 1.0)
+    obs[ob.O_NMIN, i] = _extremum(ss, norm_a, _argext(norm_a, n, -1.0), n, -1.0)
+    obs[ob.O_NMAX, i] = n_max
+    obs[ob.O_T1, i], obs[ob.O_CHI1, i] = t1, 0.0
+    obs[ob.O_TL, i] = t1 + n_cyc * period
+    obs[ob.O_CHIL, i] = n_cyc * dchi
+    # G at two successive maxima: at theta_max, and its image by the cycle's rotation
+    obs[ob.O_XP, i], obs[ob.O_YP, i] = xm, ym
+    obs[ob.O_XL, i] = rcx + cd * (xm - rcx) - sd * (ym - rcy)
+    obs[ob.O_YL, i] = rcy + sd * (xm - rcx) + cd * (ym - rcy)
+    obs[ob.O_C_PSID, i] = _extremum(ss, psid_a, _argext(psid_a, n, 1.0), n, 1.0)
+    obs[ob.O_C_TURN, i] = 2.0 * t_turn
+    obs[ob.O_C_VMIN, i] = _extremum(ss, speed_a, _argext(speed_a, n, -1.0), n, -1.0)
+    obs[ob.O_C_VMEAN, i] = 2.0 * v_int / period
+    # the velocity's winding relative to the heading: it stays in the half-plane of thetadot's
+    # sign over each half cycle, so the forward speeds at the turning points decide it
+    u_lo, u_hi = u_a[0], u_a[n]
+    wind = -1.0 if u_lo < 0.0 < u_hi else (1.0 if u_hi < 0.0 < u_lo else 0.0)
+    obs[ob.O_C_WIND, i] = wind
+    obs[ob.O_C_DUR, i] = period
+    obs[ob.O_C_RAW, i] = dchi + 2.0 * math.pi * wind
+    wrapped = dchi - 2.0 * math.pi * math.floor((dchi + math.pi) / (2.0 * math.pi))
+    obs[ob.O_CR_N, i] = max(n_max - 2.0, 0.0)
+    obs[ob.O_CR_SUM, i] = obs[ob.O_CR_N, i] * wrapped
+    obs[ob.O_HD_N, i] = n_cyc
+    obs[ob.O_HD_SUM, i] = n_cyc * wrapped
+    obs[ob.O_RC_X, i], obs[ob.O_RC_Y, i] = rcx, rcy
+    obs[ob.O_C_RMIN, i], obs[ob.O_C_RMAX, i] = r_min, r_max
+    obs[ob.O_C_SIDE, i] = 2.0 * abs(along)
+    obs[ob.O_NMIN_EV, i] = n_max
+    obs[ob.O_THD0, i], obs[ob.O_THDD0, i] = abs(thd0), abs(thdd0)
+    # points a cycle: the level's, both halves; theta's largest step between them to match
+    obs[ob.O_C_NSAMP, i] = 2.0 * n
+    obs[ob.O_TH_STEP, i] = math.pi * (hi - lo) / (2.0 * n)
+    return DONE
+
+
+@jit
+def _block(y0, params, T, stop_after, steady_tol, tabs_s, sin_s, cos_s, weights, qm, offsets,
+           lo, hi, obs, status):
+    scr = np.empty((N_SCRATCH, MAX_N + 1))
+    node = np.empty((15, MAX_N + 1))
+    for i in range(lo, hi):
+        status[i] = cycle_one(y0[2, i], y0[5, i], y0[6, i], y0[7, i], params[0, i],
+                              params[1, i], params[2, i], T, stop_after, steady_tol, tabs_s,
+                              sin_s, cos_s, weights, qm, offsets, scr, node, obs, i)
+
+
+@njit(parallel=True, nogil=True, error_model="numpy", cache=True)
+def _run_parallel(y0, params, T, stop_after, steady_tol, s, sin_s, cos_s, weights, qm, offsets,
+                  block, obs, status):
+    n = y0.shape[1]
+    nblocks = (n + block - 1) // block
+    for bi in nb.prange(nblocks):
+        lo = bi * block
+        _block(y0, params, T, stop_after, steady_tol, s, sin_s, cos_s, weights, qm, offsets,
+               lo, min(n, lo + block), obs, status)
+
+
+@jit
+def _run_serial(y0, params, T, stop_after, steady_tol, s, sin_s, cos_s, weights, qm, offsets,
+                block, obs, status):
+    _block(y0, params, T, stop_after, steady_tol, s, sin_s, cos_s, weights, qm, offsets, 0,
+           y0.shape[1], obs, status)
+
+
+def cycles_by_quadrature(y0, params, T, *, stop_after=0, steady_tol=1e-8, block=64,
+                         parallel=True):
+    """Fast-state launches y0 (N_FAST, n), params (3, n), non-dimensional T -> (obs (N_OBS, n),
+    status (n,) int8). stop_after > 0 (period mode): at most that many theta maxima are
+    counted. A launch whose status is not DONE has NaN slots: integrate it."""
+    y0 = np.ascontiguousarray(y0, dtype=np.float64)
+    params = np.ascontiguousarray(params, dtype=np.float64)
+    n = y0.shape[1]
+    obs = np.full((ob.N_OBS, n), np.nan)
+    status = np.zeros(n, dtype=np.int8)
+    if n:
+        tabs = tables()
+        run = _run_parallel if parallel else _run_serial
+        run(y0, params, float(T), int(stop_after), float(steady_tol), *tabs,
+            max(1, int(block)), obs, status)
+    return obs, status

@@ -1,0 +1,224 @@
+"""The map method `quadrature` (classify/cycle.py: each launch's classifier record from its three
+conserved quantities, no time stepping), judged against references that share none of its code:
+the numpy quadrature module (`ballsurvey.quadrature`: Gauss-Legendre panels, turning points by
+bisection), DOP853 on the fixed-frame form at rtol 1e-13 (the lanes kernel and its step
+observer), scipy's DOP853 on the fixed-frame form (a path's own roundness), and full RK4 for the
+labels."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import ballsurvey.quadrature as qmod
+from ballsurvey.ball import Ball
+from ballsurvey.classify import cycle
+from ballsurvey.classify import observer as ob
+from ballsurvey.classify.labels import LABELS, fold_deg
+from ballsurvey.compose import classify, run_launches
+from ballsurvey.integrate.outcome import FIXED_FRAME, QUADRATURE
+from ballsurvey.units import StepPlan, fields_to_si, launch_state
+
+BALL = Ball.paper()
+TU = BALL.time_unit
+P = BALL.nondim_params()
+
+#: launches whose theta max (quadrature) lies between 89.9 and 89.995 deg, with theta min far
+#: below (the regime of the best squares)
+NEAR_VERTICAL = [
+    (75.2368, -1.9093, -6.3962, 4.8384),  # 89.916
+    (76.4287, 1.2262, 3.7759, -2.9690),  # 89.962
+    (64.5561, -0.3515, 10.0448, -7.7995),  # 89.988
+    (62.8909, -0.8611, -8.7889, 6.8518),  # 89.981
+    (53.2928, 0.2588, 2.1678, -1.6947),  # 89.995
+    (65.9130, -0.4482, 3.7000, -2.9000),  # 89.953
+    (67.9958, 2.08, 12.0271, -9.2848),  # 89.955, a near-circle
+]
+
+
+def _box(n, seed):
+    """n launches of the headline map's box, a third of them with a tilt rate."""
+    rng = np.random.default_rng(seed)
+    th, cd, pd = rng.uniform(-20, 60, n), rng.uniform(-12, 12, n), rng.uniform(-8, 8, n)
+    td = np.where(np.arange(n) % 3 == 0, rng.uniform(-2, 2, n), 0.0)
+    return np.column_stack([th, td, cd, pd])
+
+
+LAUNCHES = np.concatenate([_box(40, 11), np.array(NEAR_VERTICAL)])
+
+
+def _fields(method, launches=LAUNCHES, T=20.0, **kw):
+    th, td, cd, pd = np.asarray(launches, dtype=float).T
+    y0 = launch_state(th, td, cd, pd, TU)
+    params = np.repeat(P[:, None], len(th), 1)
+    res = run_launches(y0, params, StepPlan(T, kw.pop("dt", 1e-3), TU), method, **kw)
+    return fields_to_si(classify(res, BALL.flat_face_theta_rad), BALL.a, TU, BALL.M)
+
+
+@pytest.fixture(scope="module")
+def quad():
+    return _fields("quadrature", cycles=2)
+
+
+@pytest.fixture(scope="module")
+def dop853_tight():
+    return _fields("dop853", cycles=2, rtol=1e-13, atol=1e-16)
+
+
+def _module(launch):
+    """The numpy module's cycle at the tighter of 1e-10 and 1e-9 agreement between panel counts
+    that converges (its integrand's rounding noise stops 1e-10 near the vertical)."""
+    saved = qmod.QUAD_RTOL, qmod.MAX_PANELS
+    try:
+        for rtol in (1e-10, 1e-9):
+            qmod.QUAD_RTOL, qmod.MAX_PANELS = rtol, 1024
+            r = qmod.launch_cycle(*launch, BALL)
+            if r is not None:
+                return r
+    finally:
+        qmod.QUAD_RTOL, qmod.MAX_PANELS = saved
+    return None
+
+
+def test_every_test_launch_is_done_by_quadrature_up_to_89_99_deg(quad):
+    assert (quad["formulation"] == QUADRATURE).all()
+    assert np.nanmax(quad["theta_max_deg"]) > 89.99
+
+
+def test_turn_theta_range_and_period_against_the_quadrature_module(quad):
+    used = 0
+    for i, launch in enumerate(LAUNCHES):
+        r = _module(tuple(launch))
+        if r is None:
+            continue
+        used += 1
+        assert abs(fold_deg(quad["turn_per_cycle_deg"][i] - r["turn_per_cycle_deg"])) < 1e-6, i
+        assert abs(quad["theta_max_deg"][i] - r["theta_max_deg"]) < 1e-6, i
+        assert abs(quad["theta_min_deg"][i] - r["theta_min_deg"]) < 1e-6, i
+        assert abs(quad["theta_period_s"][i] / r["theta_period_s"] - 1) < 1e-8, i
+    assert used >= 30
+
+
+def test_every_field_against_the_fixed_frame_integration(quad, dop853_tight):
+    d = dop853_tight
+    assert (d["formulation"] == FIXED_FRAME).all()
+    assert [LABELS[k] for k in quad["label"]] == [LABELS[k] for k in d["label"]]
+    assert np.array_equal(quad["n_theta_cycles"], d["n_theta_cycles"])
+    # to the integration's own accuracy at rtol 1e-13 (events located on its interpolants),
+    # which reads the turn 1.4e-6 deg off where theta max passes 89.99 deg (the module is the
+    # judge there: test above)
+    below = quad["theta_max_deg"] < 89.99
+    assert below.sum() >= len(LAUNCHES) - 2
+    dturn = np.abs(fold_deg(quad["turn_per_cycle_deg"] - d["turn_per_cycle_deg"]))
+    assert dturn[below].max() < 1e-6 and dturn.max() < 1e-5
+    assert np.nanmax(np.abs(quad["theta_max_deg"] - d["theta_max_deg"])) < 1e-6
+    assert np.nanmax(np.abs(quad["theta_min_deg"] - d["theta_min_deg"])) < 1e-6
+    assert np.nanmax(np.abs(quad["roundness"] - d["roundness"])) < 1e-4
+    for name, rtol in (("theta_period_s", 1e-8), ("side_m", 1e-6), ("chord_m", 1e-6),
+                       ("closure_m", 1e-3),
+                       # peaks the step observer reads at three points a step
+                       ("min_normal_force_ratio", 1e-3), ("max_friction_ratio", 1e-2),
+                       ("corner_sharpness", 1e-2), ("turn_monotonicity", 2e-2)):
+        a, b = quad[name], d[name]
+        assert np.array_equal(np.isnan(a), np.isnan(b)), name
+        ok = ~np.isnan(a)
+        assert np.all(np.abs(a[ok] - b[ok]) <= rtol * np.abs(b[ok]) + 1e-12), name
+    assert np.array_equal(quad["loops_per_cycle"], d["loops_per_cycle"], equal_nan=True)
+    assert np.array_equal(quad["corner_kind"], d["corner_kind"])
+
+
+def test_roundness_of_a_near_circle_past_89_9_deg_is_the_paths_own(quad):
+    from test_near_vertical import _reference_roundness
+
+    i = len(LAUNCHES) - 1  # (67.9958, 2.08, 12.0271, -9.2848): the path's own 0.007
+    ref = _reference_roundness(*NEAR_VERTICAL[-1], cycles=5)
+    assert abs(quad["roundness"][i] - ref) < 1e-4, (quad["roundness"][i], ref)
+
+
+def test_labels_agree_with_full_rk4(quad):
+    rk4 = _fields("rk4", dt=1e-4, cycles=0)
+    assert [LABELS[k] for k in quad["label"]] == [LABELS[k] for k in rk4["label"]]
+
+
+def test_what_the_quadrature_cannot_do_goes_to_the_integrator():
+    launches = np.array([
+        (89.999, 0.0, 0.0, 0.0),  # no spin: rocks through the upright position (slowly)
+        (45.0, 0.0, 0.0, 0.0),  # no spin, falls from 45 deg through the upright position
+        (20.0, 0.5, 5.0, -3.0),  # an ordinary launch beside them
+    ])
+    th, td, cd, pd = launches.T
+    y0 = launch_state(th, td, cd, pd, TU)
+    params = np.repeat(P[:, None], len(th), 1)
+    _, status = cycle.cycles_by_quadrature(y0, params, 4.0 / TU)
+    assert [cycle.STATUSES[s] for s in status] == ["vertical", "vertical", "done"]
+    q = _fields("quadrature", launches, T=4.0, cycles=2)
+    d = _fields("dop853", launches, T=4.0, cycles=2)
+    assert list(q["formulation"]) == [FIXED_FRAME, FIXED_FRAME, QUADRATURE]
+    assert np.array_equal(q["label"], d["label"])
+    assert LABELS[q["label"][1]] == "near_straight"
+
+
+def test_a_steady_launch_goes_to_the_integrator():
+    from ballsurvey.physics.steady import spin_for_circle
+
+    th0, omega = 24.0, -3.23
+    phd = spin_for_circle(math.radians(th0), omega * TU, *P) / TU
+    launch = np.array([(th0, 0.0, omega, phd)])
+    q = _fields("quadrature", launch, T=4.0, cycles=2)
+    assert q["formulation"][0] == FIXED_FRAME and LABELS[q["label"][0]] == "circle"
+
+
+def test_results_do_not_depend_on_block_or_threads():
+    th, td, cd, pd = LAUNCHES.T
+    y0 = launch_state(th, td, cd, pd, TU)
+    params = np.repeat(P[:, None], len(th), 1)
+    a, sa = cycle.cycles_by_quadrature(y0, params, 20 / TU, stop_after=3, block=64)
+    b, sb = cycle.cycles_by_quadrature(y0, params, 20 / TU, stop_after=3, block=1)
+    c, sc = cycle.cycles_by_quadrature(y0, params, 20 / TU, stop_after=3, parallel=False)
+    assert np.array_equal(a, b, equal_nan=True) and np.array_equal(a, c, equal_nan=True)
+    assert np.array_equal(sa, sb) and np.array_equal(sa, sc)
+    # period mode counts at most stop_after maxima; a full run every maximum within T
+    full, _ = cycle.cycles_by_quadrature(y0, params, 20 / TU)
+    assert (sa == cycle.DONE).all()
+    assert (a[ob.O_NMAX] <= 3).all() and (full[ob.O_NMAX] >= a[ob.O_NMAX]).all()
+
+
+def test_a_quadrature_sweep_counts_its_fallbacks_and_matches_dop853(tmp_path):
+    import subprocess
+    import sys
+
+    import xarray as xr
+
+    spec = """
+title = "by quadrature"
+[launch]
+theta0_deg = [10.0, 24.0, 45.0]
+thetadot0 = 0.0
+chidot0 = [-3.23, 0.0, 3.0]
+phidot0 = [-3.0, 0.0]
+[run]
+T = 4.0
+dt = 1e-3
+method = "{method}"
+mode = "period"
+[output]
+file = "{out}"
+"""
+    maps = {}
+    for method in ("quadrature", "dop853"):
+        path = tmp_path / f"{method}.toml"
+        path.write_text(spec.format(method=method, out=tmp_path / f"{method}.nc"))
+        r = subprocess.run([sys.executable, "-m", "ballsurvey", "sweep", str(path),
+                            "--no-progress"], capture_output=True, text=True, timeout=600)
+        assert r.returncode == 0, r.stderr
+        maps[method] = (r.stdout + r.stderr, xr.load_dataset(tmp_path / f"{method}.nc"))
+    out, q = maps["quadrature"]
+    _, d = maps["dop853"]
+    n_fallback = int((q.formulation.values == FIXED_FRAME).sum())
+    # (45, 0, 0, 0) rocks through the upright position: at least it goes to the integrator
+    assert n_fallback >= 1 and (q.formulation.values == QUADRATURE).sum() >= 6
+    assert (f"integrated (dop853) where the quadrature cannot go (tilt through the vertical, "
+            f"launched steady, not converged): {n_fallback}") in out
+    assert q.formulation.attrs["flag_meanings"] == "euler_angles fixed_frame quadrature"
+    assert np.array_equal(q.label.values, d.label.values)
