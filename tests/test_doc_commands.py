@@ -33,6 +33,8 @@ SKIP = {
     "ballsurvey fit examples/track-square.csv -o results/fit.png":
         "a fit, ~10 s (tests/test_fit.py fits a track made like the shipped one)",
     "ballsurvey fit examples/track-square.csv": "a fit, ~10 s (as above)",
+    "ballsurvey fit examples/track-tracker.txt --units cm -o results/fit-tracker.png":
+        "a fit, ~10 s (tests/test_fit_lab.py fits the shipped Tracker file by the command line)",
     "ballsurvey bench --backend cuda": "needs a CUDA GPU",
     "ballsurvey animate --theta0-deg -5 --chidot0 4.05 --phidot0 -3 --T 3 -o results/square.gif":
         "the README's animate command with its default --T 3 written out (run above)",

@@ -78,7 +78,7 @@ after = compose.cached_on_disk(mod.adaptive_one)
 compose.prefetch_fallback(False)
 again = len(compose._HELPER)
 with event.install_listener("numba:compile", Listener()):
-    compose.warm_fallback(np.array([0.1, 0.4, 0.4]), (False,))
+    compose.warm_fallback(np.array([0.1, 0.4, 0.4]), (False,), quadrature=False)
 print(json.dumps(dict(before=before, started=started, after=after, again=again,
                       compiled=compiled)))
 """
