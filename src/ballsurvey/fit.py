@@ -471,7 +471,7 @@ def _place(local: dict, chi0_deg, x0, y0) -> dict:
     """Turn the positions by chi0 about the origin and shift them by (x0, y0)."""
     c, s = np.cos(np.radians(chi0_deg)), np.sin(np.radians(chi0_deg))
     out = dict(local)
-    for px, py in (("x", "y"), ("x_tip", "y_tip"), ("x_base", "y_base")):
+    for px, py in POSITION_PAIRS:
         if px in local:
             out[px] = c * local[px] - s * local[py] + x0
             out[py] = s * local[px] + c * local[py] + y0
@@ -513,6 +513,12 @@ def _integrate_resisted(dyn: np.ndarray, ball: Ball, t: np.ndarray):
     return t, traj, ok
 
 
+def _dyn_index(slowing: bool) -> list[int]:
+    """Where the integration's parameters stand in a fitted launch (PARAMS, then SLOWING): the
+    tilt and three rates, and with slowing the rolling-resistance coefficient."""
+    return [0, 1, 2, 3, 7] if slowing else [0, 1, 2, 3]
+
+
 def _fallback_traj(q, ball: Ball, T: float, dt: float, n_t: int) -> np.ndarray:
     """One launch's samples through `run_trajectory`, which integrates again in the fixed frame
     a launch that meets the Euler chart's singularity (near-vertical)."""
@@ -528,9 +534,8 @@ class _Model:
 
     def __init__(self, track: Track, ball: Ball, T: float, slowing: bool = False):
         self.track, self.ball, self.slowing = track, ball, slowing
-        # the parameters the integration takes (the rest turn and shift its positions): the
-        # launch's four rates and tilt, and with slowing the rolling-resistance coefficient
-        self.dyn = [0, 1, 2, 3, 7] if slowing else [0, 1, 2, 3]
+        # the parameters the integration takes (the rest turn and shift its positions)
+        self.dyn = _dyn_index(slowing)
         m = track.t <= T + 1e-12
         self.idx = np.flatnonzero(m)
         self.T = float(track.t[self.idx[-1]])
@@ -582,7 +587,7 @@ class _Model:
         for k in self.names:
             z = np.zeros(self.idx.size)
             dchi[k], dx[k], dy[k] = z, z, z
-        for px, py in (("x", "y"), ("x_tip", "y_tip"), ("x_base", "y_base")):
+        for px, py in POSITION_PAIRS:
             if px in self.names:
                 one, zero = np.ones(self.idx.size), np.zeros(self.idx.size)
                 dchi[px] = (-s * loc[px] - c * loc[py]) * math.pi / 180
@@ -650,7 +655,7 @@ def _align(loc: dict, data: dict, names, w: dict, valid: np.ndarray):
     closed form (2-D Procrustes without reflection, over each launch's valid samples), and the
     weighted misfit left, scaled to all the samples (a launch that left the Euler chart part
     way is judged by its mean misfit before)."""
-    pos = [(px, py) for px, py in (("x", "y"), ("x_tip", "y_tip"), ("x_base", "y_base"))
+    pos = [(px, py) for px, py in POSITION_PAIRS
            if px in names]
     wt = np.concatenate([valid] * len(pos)).astype(float)
     n = wt.sum(0)
@@ -1128,7 +1133,7 @@ def fitted_track(fit: dict, track: Track, ball: Ball | None = None, times=None) 
     T = float(track.t[-1])
     if slowing:
         grid = np.linspace(0.0, T, max(int(round(T / FIT_DT)), 1) + 1)
-        times_, traj, _ = _integrate_resisted(q[[0, 1, 2, 3, 7]].reshape(5, 1), ball, grid)
+        times_, traj, _ = _integrate_resisted(q[_dyn_index(True)].reshape(-1, 1), ball, grid)
     else:
         times_, traj, ok, _ = _integrate(q[:4].reshape(4, 1), ball, T, FIT_DT, 1)
         if not ok[0]:
