@@ -471,13 +471,6 @@ def _run_parallel(y0, params, T, stop_after, steady_tol, s, sin_s, cos_s, weight
                lo, min(n, lo + block), obs, status)
 
 
-@jit
-def _run_serial(y0, params, T, stop_after, steady_tol, s, sin_s, cos_s, weights, qm, offsets,
-                block, obs, status):
-    _block(y0, params, T, stop_after, steady_tol, s, sin_s, cos_s, weights, qm, offsets, 0,
-           y0.shape[1], obs, status)
-
-
 def cycles_by_quadrature(y0, params, T, *, stop_after=0, steady_tol=1e-8, block=64,
                          parallel=True):
     """Fast-state launches y0 (N_FAST, n), params (3, n), non-dimensional T -> (obs (N_OBS, n),
@@ -490,7 +483,10 @@ def cycles_by_quadrature(y0, params, T, *, stop_after=0, steady_tol=1e-8, block=
     status = np.zeros(n, dtype=np.int8)
     if n:
         tabs = tables()
-        run = _run_parallel if parallel else _run_serial
-        run(y0, params, float(T), int(stop_after), float(steady_tol), *tabs,
-            max(1, int(block)), obs, status)
+        if parallel:
+            _run_parallel(y0, params, float(T), int(stop_after), float(steady_tol), *tabs,
+                          max(1, int(block)), obs, status)
+        else:  # the block kernel itself, GIL released: no serial driver to compile
+            _block(y0, params, float(T), int(stop_after), float(steady_tol), *tabs, 0, n, obs,
+                   status)
     return obs, status
