@@ -7,6 +7,7 @@
 #   bash benchmarks/device.sh headline   # bench --headline --backend cuda; sweep --backend cuda
 #   bash benchmarks/device.sh scaling [N]   # bench --scaling on the headline map (N = 100: 1e6
 #                                           # launches) on 1 thread, 16 threads, 16 dask workers
+#   bash benchmarks/device.sh quadrature   # the headline and the 1e8 map by quadrature on the GPU
 #   (also: map-n N, an N^3 map of the same box; observer, the kernel with and without samples)
 #
 # The machine has its own Python with numba, numba-cuda, numpy, xarray, pandas and matplotlib and
@@ -41,6 +42,12 @@ log="$out/$stage.log"
         python3 benchmarks/peak.py timeout -s INT 560 python3 -m ballsurvey sweep \
             sweeps/gpu-1e8.toml -o /tmp/gpu-1e8.nc --no-progress -v --force
         ls -la /tmp/gpu-1e8.nc 2>&1 ;;
+    quadrature)  # the headline map by quadrature on the GPU (dop853 on the CPU beside it), then
+                 # the 1e8-launch quadrature map on the GPU, stopped at 300 s if not done
+        timeout 300 python3 -m ballsurvey bench --headline --method quadrature --backend cuda
+        python3 benchmarks/peak.py timeout -s INT 300 python3 -m ballsurvey sweep \
+            sweeps/quadrature-1e8.toml --backend cuda -o /tmp/q1e8.nc --no-progress -v --force
+        ls -la /tmp/q1e8.nc 2>&1 ;;
     map-n)  # the same box at N points an axis (N^3 launches): bash benchmarks/device.sh map-n 215
         n=${2:?N}
         sed "s/num = 464/num = $n/" sweeps/gpu-1e8.toml > /tmp/gpu-n.toml

@@ -305,3 +305,71 @@ def test_ptxas_figures_of_the_kernel_in_use():
         [int(x) for x in line.split()] for line in r.stdout.strip().splitlines())
     assert spill_st == spill_ld == 0, r.stdout
     assert regs < regs_columns, r.stdout
+
+
+QUAD_SCRIPT = textwrap.dedent('''
+import numpy as np
+from ballsurvey.ball import Ball
+from ballsurvey.classify import cycle, observer
+from ballsurvey.integrate import cuda
+from ballsurvey.units import launch_state
+
+ball = Ball.paper()
+tu = ball.time_unit
+# a square, a near-straight path, a circle, a launch through the vertical and one at rest in theta
+th = np.array([-5.0, 12.0, 30.0, 60.0, 85.0])
+chd = np.array([3.9, -6.0, 9.0, 0.5, 0.2])
+phd = np.array([-3.0, 1.0, 6.0, -2.0, 0.0])
+thd = np.array([0.0, 0.3, 0.0, 0.0, 0.0])
+y0 = launch_state(th, thd, chd, phd, tu)
+params = np.repeat(ball.nondim_params()[:, None], th.size, 1)
+T = 20.0 / tu
+cpu, st_cpu = cycle.cycles_by_quadrature(y0, params, T, stop_after=3, parallel=False)
+gpu, st_gpu = cuda.per_launch(cycle.cycle_one, y0, params, T, 3, 1e-8, cycle.tables(),
+                              n_scratch=cycle.N_SCRATCH, n_node=cycle.N_NODE,
+                              n_points=cycle.MAX_N + 1, n_slots=observer.N_OBS)
+assert np.array_equal(st_cpu, st_gpu), (st_cpu, st_gpu)
+assert (st_cpu == cycle.DONE).sum() >= 3, st_cpu
+assert np.array_equal(np.isnan(cpu), np.isnan(gpu))
+ok = ~np.isnan(cpu)
+assert np.allclose(cpu[ok], gpu[ok], rtol=1e-12, atol=1e-14)
+print("ok")
+''')
+
+
+def test_quadrature_per_launch_kernel_matches_cpu_in_the_simulator():
+    """The quadrature's per-launch function re-targeted to CUDA (one thread a launch, its scratch
+    in the thread's local memory) gives the CPU kernel's record and statuses."""
+    try:
+        import numba.cuda  # noqa: F401
+    except ImportError:
+        pytest.skip("numba has no CUDA target here")
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")
+    r = subprocess.run([sys.executable, "-c", QUAD_SCRIPT], capture_output=True, text=True,
+                       env=env, timeout=600)
+    assert r.returncode == 0 and r.stdout.strip().endswith("ok"), r.stderr[-3000:]
+
+
+def test_sweep_by_quadrature_on_backend_cuda_gives_the_cpu_map(tmp_path):
+    """`method = "quadrature"` with `--backend cuda` (simulator): the CPU's map, labels identical,
+    fields to rounding (the near-vertical launch goes to the CPU's integrator in both)."""
+    import numpy as np
+    import xarray as xr
+
+    try:
+        import numba.cuda  # noqa: F401
+    except ImportError:
+        pytest.skip("numba has no CUDA target here")
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")
+    spec = tmp_path / "map.toml"
+    spec.write_text(SPEC.format(backend="cpu", out=tmp_path / "cpu.nc").replace(
+        "dt = 1e-3", 'dt = 1e-3\nmethod = "quadrature"\nmode = "period"'))
+    for extra in ([], ["--backend", "cuda", "-o", str(tmp_path / "cuda.nc")]):
+        r = subprocess.run([sys.executable, "-m", "ballsurvey", "sweep", str(spec), "-q", *extra],
+                           capture_output=True, text=True, env=env, timeout=600)
+        assert r.returncode == 0, r.stderr
+    cpu, gpu = (xr.open_dataset(tmp_path / f"{b}.nc") for b in ("cpu", "cuda"))
+    assert gpu.attrs["run_backend"] == "cuda" and gpu.attrs["run_method"] == "quadrature"
+    assert np.array_equal(cpu.label.values, gpu.label.values)
+    for v in ("n_sides", "turn_per_cycle_deg", "theta_period_s", "roundness"):
+        assert np.allclose(cpu[v].values, gpu[v].values, rtol=1e-9, equal_nan=True), v

@@ -503,14 +503,17 @@ def run_headline(n: int = 100, T: float = 20.0, method: str = "dop853", dt: floa
     dt = run["dt"]
     if baseline == "":
         baseline = HEADLINE_BASELINE.get(method)
+    # the baseline runs where it can: dop853 only on the CPU
+    base_backend = backend if baseline in FIXED_STEP or baseline == "quadrature" else "cpu"
     maps = {}
     with tempfile.TemporaryDirectory() as tmp:
         target = Path(out_file) if out_file else Path(tmp) / "headline.nc"
         maps[method] = _headline_map(n, T, method, backend, run, tmp, target)
         peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
         if baseline:
-            maps[baseline] = _headline_map(n, T, baseline, backend, dict(HEADLINE_RUN[baseline]),
-                                           tmp, Path(tmp) / "baseline.nc")
+            maps[baseline] = _headline_map(n, T, baseline, base_backend,
+                                           dict(HEADLINE_RUN[baseline]), tmp,
+                                           Path(tmp) / "baseline.nc")
     spec = maps[method][4]
     size = maps[method][3].size
     rng = np.random.default_rng(seed)
@@ -540,7 +543,9 @@ def run_headline(n: int = 100, T: float = 20.0, method: str = "dop853", dt: floa
                                    if method in FIXED_STEP else "") +
         f"{threads} numba threads" + (", on the GPU" if backend == "cuda" else ""))
     for m, (w, c, t, _, _) in maps.items():
-        lead = "  " if m == method else f"  baseline, {how(m, HEADLINE_RUN[m])}, same run: "
+        lead = "  " if m == method else (f"  baseline, {how(m, HEADLINE_RUN[m])}"
+                                         + (" on the CPU" if base_backend != backend else "")
+                                         + ", same run: ")
         out(f"{lead}wall time {w:.1f} s ({n ** 3 / w:.0f} launches/s), CPU use "
             f"{100 * c / w:.0f} % ({c / w / threads:.0%} of {threads} threads)"
             + (f", peak memory {peak_mb:.0f} MB" if m == method else ""))

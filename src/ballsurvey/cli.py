@@ -173,8 +173,8 @@ def _cmd_bench(args):
         if args.backend == "cuda":
             from .integrate.tableaus import FIXED_STEP
 
-            if method not in FIXED_STEP:
-                raise InputError(f"--headline --backend cuda runs rk4, not {method}")
+            if method not in FIXED_STEP and method != "quadrature":
+                raise InputError(f"--headline --backend cuda runs rk4 or quadrature, not {method}")
             _check_cuda()
         run_headline(n=args.headline, T=args.T, method=method, backend=args.backend)
         return

@@ -250,12 +250,15 @@ def run_launches(y0, params, plan: StepPlan, method="rk4", *, rtol=1e-9, atol=1e
     cycles; T is then the longest it may run.
     fallback: launches `needs_fallback` names (with `thresholds`) are run again in the fixed
     frame. method "quadrature": no time stepping (`by_quadrature`). backend "cuda": the
-    fixed-step kernel on the GPU (`integrate.cuda`); the fixed-frame
+    fixed-step kernel or the quadrature on the GPU (`integrate.cuda`); the fixed-frame
     fallback of the few launches that need it runs on the CPU."""
     stop = stop_target(cycles)
     t0 = time.perf_counter()
     fb0 = TIMES["integrator fallback"]  # by_quadrature's fallback, counted apart
-    if backend == "cuda":
+    if method == QUADRATURE:
+        res = by_quadrature(y0, params, plan, rtol=rtol, atol=atol, block=block,
+                            parallel=parallel, stop=stop, thresholds=thresholds, backend=backend)
+    elif backend == "cuda":
         from .integrate import cuda
 
         if method not in FIXED_STEP:
@@ -275,9 +278,6 @@ def run_launches(y0, params, plan: StepPlan, method="rk4", *, rtol=1e-9, atol=1e
                                        observer=STEP_OBSERVER, n_slots=N_OBS, method=method,
                                        lanes=block, h_init=plan.h_init_nd, parallel=parallel,
                                        stop_after=stop)
-    elif method == QUADRATURE:
-        res = by_quadrature(y0, params, plan, rtol=rtol, atol=atol, block=block,
-                            parallel=parallel, stop=stop, thresholds=thresholds)
     else:
         raise ValueError(f"unknown method {method!r}; known: {', '.join(MAP_METHODS)}")
     t1 = time.perf_counter()
@@ -290,15 +290,26 @@ def run_launches(y0, params, plan: StepPlan, method="rk4", *, rtol=1e-9, atol=1e
 
 
 def by_quadrature(y0, params, plan: StepPlan, *, rtol=1e-9, atol=1e-12, block=64,
-                  parallel=True, stop=0, thresholds: Thresholds = Thresholds()) -> oc.Result:
+                  parallel=True, stop=0, thresholds: Thresholds = Thresholds(),
+                  backend: str = "cpu") -> oc.Result:
     """Launches by quadrature (`classify.cycle`): the observer's record of each from its
     invariants, formulation QUADRATURE; those it cannot do (tilt through the vertical, launched
     steady, quadrature not converged) integrated by QUADRATURE_FALLBACK at rtol, atol in the
-    fixed frame (their formulation says so; `TIMES['integrator fallback']`)."""
+    fixed frame (their formulation says so; `TIMES['integrator fallback']`). backend "cuda": the
+    quadrature runs on the GPU, one thread a launch (`integrate.cuda.per_launch`), its fallback
+    on the CPU."""
     n = y0.shape[1]
-    obs, status = cycle.cycles_by_quadrature(y0, params, plan.T_nd, stop_after=stop,
-                                             steady_tol=thresholds.steady_rate_tol,
-                                             block=block, parallel=parallel)
+    if backend == "cuda":
+        from .integrate import cuda
+
+        obs, status = cuda.per_launch(cycle.cycle_one, y0, params, plan.T_nd, stop,
+                                      thresholds.steady_rate_tol, cycle.tables(),
+                                      n_scratch=cycle.N_SCRATCH, n_node=cycle.N_NODE,
+                                      n_points=cycle.MAX_N + 1, n_slots=N_OBS)
+    else:
+        obs, status = cycle.cycles_by_quadrature(y0, params, plan.T_nd, stop_after=stop,
+                                                 steady_tol=thresholds.steady_rate_tol,
+                                                 block=block, parallel=parallel)
     res = oc.Result(obs=obs, outcome=np.zeros(n, dtype=np.int8), t_stop=np.full(n, np.nan),
                     formulation=np.full(n, oc.QUADRATURE, dtype=np.int8),
                     y_end=np.full((y0.shape[0], n), np.nan), n_steps=np.zeros(n, dtype=np.int64),

@@ -84,6 +84,8 @@ START_OFFSET = 1e-9
 #: per-point scratch columns
 _TH, _TAU, _CHD, _PHD, _THD = range(5)
 N_SCRATCH = 5
+#: per-point rows of the path's scratch (`cycle_one`'s node)
+N_NODE = 15
 
 
 @cache
@@ -234,7 +236,7 @@ def _cumulate(qm, off, n, f, out):
 def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, sin_s, cos_s,
               weights, qm, offsets, scr, node, obs, i):
     """Launch i (non-dimensional tilt, rates) -> its observer slots obs[:, i]; returns a status.
-    scr (N_SCRATCH, MAX_N + 1) and node (15, MAX_N + 1): scratch."""
+    scr (N_SCRATCH, MAX_N + 1) and node (N_NODE, MAX_N + 1): scratch."""
     s0, c0 = math.sin(th0), math.cos(th0)
     # the energy less its constant M g a: F is a small difference near the turning points
     kin = kinetic(s0, c0, thd0, chd0, phd0, c, A, B)
@@ -453,7 +455,7 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
 def _block(y0, params, T, stop_after, steady_tol, tabs_s, sin_s, cos_s, weights, qm, offsets,
            lo, hi, obs, status):
     scr = np.empty((N_SCRATCH, MAX_N + 1))
-    node = np.empty((15, MAX_N + 1))
+    node = np.empty((N_NODE, MAX_N + 1))
     for i in range(lo, hi):
         status[i] = cycle_one(y0[2, i], y0[5, i], y0[6, i], y0[7, i], params[0, i],
                               params[1, i], params[2, i], T, stop_after, steady_tol, tabs_s,

@@ -393,3 +393,66 @@ def integrate(y0, params, dt, n_steps, method="rk4", *, observer: Observer, n_sl
                   formulation=np.full(n, EULER_ANGLES, dtype=np.int8), y_end=y_end,
                   n_steps=np.full(n, int(n_steps), dtype=np.int64), t=np.empty(0),
                   traj=np.empty((0, N_FAST, n)))
+
+
+_PER_LAUNCH_TEMPLATE = '''
+def kernel(y0, params, T, stop_after, steady_tol, s, sin_s, cos_s, weights, qm, offsets, obs,
+           status):
+    i = cuda.grid(1)
+    if i >= y0.shape[1]:
+        return
+    scr = cuda.local.array(({n_scratch}, {n_points}), float64)
+    node = cuda.local.array(({n_node}, {n_points}), float64)
+    status[i] = one(y0[{th}, i], y0[{thd}, i], y0[{chd}, i], y0[{phd}, i], params[0, i],
+                    params[1, i], params[2, i], T, stop_after, steady_tol, s, sin_s, cos_s,
+                    weights, qm, offsets, scr, node, obs, i)
+'''
+
+
+@cache
+def make_per_launch_kernel(one, n_scratch: int, n_node: int, n_points: int):
+    """The compiled CUDA kernel that runs a per-launch function of `classify.cycle.cycle_one`'s
+    signature (a launch's tilt and rates, its parameters, the run's scalars and tables, two
+    scratch arrays, the record and the launch's column) one thread a launch; the scratch arrays
+    are the thread's local memory (n_scratch and n_node rows of n_points)."""
+    from numba import float64
+
+    from ..physics.fast import S_CHD, S_PHD, S_TH, S_THD
+
+    cuda = cuda_module()
+    ns = {"cuda": cuda, "float64": float64, "one": device_twin(one, cuda)}
+    src = _PER_LAUNCH_TEMPLATE.format(n_scratch=n_scratch, n_node=n_node, n_points=n_points,
+                                      th=S_TH, thd=S_THD, chd=S_CHD, phd=S_PHD)
+    exec(compile(src, "<ballsurvey cuda per-launch kernel>", "exec"), ns)
+    return cuda.jit(ns["kernel"])
+
+
+def per_launch(one, y0, params, T, stop_after, steady_tol, tables, *, n_scratch: int,
+               n_node: int, n_points: int, n_slots: int, batch: int | None = None):
+    """`one` (see `make_per_launch_kernel`) over every launch on the GPU: (record (n_slots, n),
+    status (n,) int8). y0: (N_FAST, n) fast states; params: (3, n); tables: the arrays `one`
+    reads (copied to the card once). Launches go through the card `batch` at a time."""
+    y0 = np.ascontiguousarray(y0, dtype=np.float64)
+    params = np.ascontiguousarray(params, dtype=np.float64)
+    n = y0.shape[1]
+    obs = np.full((n_slots, n), np.nan)
+    status = np.zeros(n, dtype=np.int8)
+    if not n:
+        return obs, status
+    kern = make_per_launch_kernel(one, n_scratch, n_node, n_points)
+    cuda = cuda_module()
+    d_tabs = [cuda.to_device(np.ascontiguousarray(t)) for t in tables]
+    batch = int(batch or default_batch(cuda, n_slots))
+    threads = threads_per_block()
+    for lo in range(0, n, batch):
+        hi = min(n, lo + batch)
+        m = hi - lo
+        d_obs = cuda.to_device(np.full((n_slots, m), np.nan))
+        d_status = cuda.device_array(m, dtype=np.int8)
+        kern[(m + threads - 1) // threads, threads](
+            cuda.to_device(np.ascontiguousarray(y0[:, lo:hi])),
+            cuda.to_device(np.ascontiguousarray(params[:, lo:hi])), float(T), int(stop_after),
+            float(steady_tol), *d_tabs, d_obs, d_status)
+        obs[:, lo:hi] = d_obs.copy_to_host()
+        status[lo:hi] = d_status.copy_to_host()
+    return obs, status

@@ -417,9 +417,9 @@ def load_spec(path, *, text: str | None = None, run: dict | None = None) -> Spec
     backend = run.get("backend", RUN_OVERRIDE_DEFAULTS["backend"])
     if backend not in BACKENDS:
         _err(src, "[run] backend", f"must be one of {', '.join(BACKENDS)}, got {backend!r}")
-    if backend == "cuda" and method not in FIXED_STEP:
-        _err(src, "[run] backend", f"cuda runs the fixed-step methods ({', '.join(FIXED_STEP)}); "
-             f"{method} runs on the cpu")
+    if backend == "cuda" and method not in (*FIXED_STEP, "quadrature"):
+        _err(src, "[run] backend", f"cuda runs the fixed-step methods ({', '.join(FIXED_STEP)}) "
+             f"and quadrature; {method} runs on the cpu")
     block = _number(src, "[run] block", run.get("block", 64), integer=True, lo=1,
                     hi=limits.MAX_BLOCK)
     chunk = _number(src, "[run] chunk", run.get("chunk", DEFAULT_CHUNK[backend]), integer=True,
