@@ -240,3 +240,25 @@ def test_a_map_says_where_an_exact_square_runs_through_circle():
     texts = [t.get_text() for leg in map_figure(ds, x="theta0_deg", y="chidot0").legends
              for t in leg.get_texts()]
     assert not any("also through" in s for s in texts)
+
+
+@pytest.mark.parametrize("ask", [dict(shape="square"), dict(shape="circle"),
+                                 dict(shape="triangle"), dict(shape="ngon"), dict(n_sides=4),
+                                 dict(shape="square", max_n_error=0.05)])
+@pytest.mark.parametrize("limit", [None, 1, 3])
+def test_query_by_slabs_gives_the_whole_maps_rows(small_map, monkeypatch, ask, limit):
+    """A map read a slab at a time (one theta0 row, 16 launches, a slab): the same rows in the
+    same order, the same count matched and the same columns said once as the whole map at once."""
+    import importlib
+
+    q = importlib.import_module("ballsurvey.query")  # the module (the package names its function)
+    whole = query(small_map, limit=limit, **ask)
+    monkeypatch.setattr(q, "SLAB_LAUNCHES", 5)
+    assert len(list(q.slabs(small_map))) == small_map.sizes["theta0_deg"]
+    parts = query(small_map, limit=limit, **ask)
+    assert whole.attrs["matched"] >= 1, ask  # the fixture holds each of these
+    assert parts.attrs["matched"] == whole.attrs["matched"]
+    assert parts.attrs["common"] == whole.attrs["common"]
+    assert list(parts.columns) == list(whole.columns)
+    assert parts.to_dict("records") == whole.to_dict("records") or \
+        parts.astype(str).equals(whole.astype(str))

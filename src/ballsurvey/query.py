@@ -22,6 +22,9 @@ CONDITION_UNITS = {k: ax.text_units for k, ax in AXES.items()}
 #: singular and the result is numerically delicate (computed in the fixed frame where needed)
 NEAR_VERTICAL_DEG = 89.0
 DEFAULT_LIMIT = 20
+#: `query` reads a map in slabs of about this many launches along its first axis, so a map
+#: opened lazily (larger than `open_map` loads) is never read whole
+SLAB_LAUNCHES = 1 << 22
 
 
 def _needs(ds, name: str, asked: bool, what: str) -> None:
@@ -114,6 +117,7 @@ def query_frame(ds: xr.Dataset, shape: str | None = None, n_sides: int | None = 
     df = pd.DataFrame(cols)
     df.attrs["units"] = {c: COLUMN_UNITS[c] for c in df.columns if c in COLUMN_UNITS}
     df.attrs["matched"] = len(df)
+    df.attrs["ranked"] = target is not None  # best first; else in launch order
     return df
 
 
@@ -178,20 +182,61 @@ def format_table(df, fmt: str = "table") -> str:
     return "\n".join(lines)
 
 
+def slabs(ds: xr.Dataset, launches: int = 0):
+    """The map in slabs along its first axis of about `launches` launches each (default
+    SLAB_LAUNCHES; at least one row of that axis), in the map's order; a lone launch: itself."""
+    if "label" not in ds or ds.label.ndim == 0:
+        yield ds
+        return
+    dim = ds.label.dims[0]
+    per_row = max(1, ds.label.size // max(ds.sizes[dim], 1))
+    rows = max(1, (launches or SLAB_LAUNCHES) // per_row)
+    for lo in range(0, max(ds.sizes[dim], 1), rows):
+        yield ds.isel({dim: slice(lo, lo + rows)})
+
+
 def query(ds: xr.Dataset, shape: str | None = None, n_sides: int | None = None,
           limit: int | None = None, max_n_error: float | None = None,
           max_closure: float | None = None):
-    """`query_frame` cut to `limit` rows; `df.attrs['matched']` is how many matched before it."""
+    """`query_frame` cut to `limit` rows; `df.attrs['matched']` is how many matched before it.
+
+    The map is read a slab at a time (`slabs`): each slab's best `limit` rows are kept and the
+    kept rows ranked again together (a stable sort: ties stay in launch order), which gives the
+    rows `query_frame` on the whole map would."""
+    import pandas as pd
+
     if limit is not None:
         limit = limits.number("limit", limit, integer=True, lo=1)
-    df = query_frame(ds, shape, n_sides, max_n_error, max_closure)
-    matched = len(df)
+    parts, matched, ranked, units = [], 0, False, None
+    first: dict = {}  # per condition column: its one value over every match so far, or None
+    for part in slabs(ds):
+        d = query_frame(part, shape, n_sides, max_n_error, max_closure)
+        matched += len(d)
+        ranked, units = d.attrs["ranked"], d.attrs["units"]
+        for c in d.columns:
+            if c not in CONDITION_UNITS or not len(d) or first.get(c, 0) is None:
+                continue
+            values = pd.unique(d[c])
+            if len(values) > 1 or (c in first and not _same(first[c], values[0])):
+                first[c] = None
+            else:
+                first[c] = values[0]
+        parts.append(d.head(limit) if limit is not None else d)
+    df = pd.concat(parts, ignore_index=True) if len(parts) > 1 else parts[0]
+    if ranked and len(parts) > 1:
+        inf = np.inf
+        key = np.lexsort((np.nan_to_num(df.closure_m.to_numpy(float), nan=inf),
+                          np.nan_to_num(df.n_sides_error.to_numpy(float), nan=inf)))
+        df = df.iloc[key].reset_index(drop=True)
+    if limit is not None:
+        df = df.head(limit)
     # columns said once are those common to every match, not to the rows kept: a script's
     # columns do not change with --limit
-    df.attrs["common"] = _constant_columns(df)
-    if limit is not None:
-        attrs = dict(df.attrs)
-        df = df.head(limit)
-        df.attrs.update(attrs)
-    df.attrs["matched"] = matched
+    df.attrs = {"units": units, "ranked": ranked, "matched": matched,
+                "common": [c for c, v in first.items() if v is not None] if matched >= 2 else []}
     return df
+
+
+def _same(a, b) -> bool:
+    """Equal, NaN equal to NaN."""
+    return a == b or (isinstance(a, float) and isinstance(b, float) and a != a and b != b)

@@ -92,8 +92,8 @@ N_NODE = 15
 def tables():
     """(s, sin s, cos s at the finest level's MAX_N + 1 points; weights (LEVELS, MAX_N + 1):
     level L's Clenshaw-Curtis weights in s at the finest level's indices (0 elsewhere);
-    cumulative integration matrices of all levels, flat, and their offsets). Level L's point j
-    is the finest level's point j * (MAX_N >> (L + log2 FIRST_N))."""
+    cumulative integration matrices of all levels, flat (each by columns), and their offsets).
+    Level L's point j is the finest level's point j * (MAX_N >> (L + log2 FIRST_N))."""
     from numpy.polynomial import chebyshev as ch
 
     k = np.arange(MAX_N + 1)
@@ -108,7 +108,7 @@ def tables():
         q = ch.chebvander(x, n + 1) @ ch.chebint(vinv, lbnd=-1.0, axis=0) * (0.5 * math.pi)
         q[0] = 0.0
         weights[L, ::MAX_N // n] = q[-1]
-        mats.append(q.ravel())
+        mats.append(q.T.ravel())  # by columns (`_cumulate`)
         offsets[L + 1] = offsets[L] + q.size
     return (s, np.sin(s), np.cos(s), weights, np.concatenate(mats), offsets)
 
@@ -222,14 +222,17 @@ def _argext(f, n, sign):
 
 @jit
 def _cumulate(qm, off, n, f, out):
-    """out[j] = integral of f from the first point to point j (level matrix at qm[off:])."""
+    """out[j] = integral of f from the first point to point j (the level's matrix, stored by
+    columns, at qm[off:]). Each out[j] sums its terms in the order of k, as a row-by-row product
+    would, but the inner loop runs over j: independent sums, which vectorise."""
     m = n + 1
     for j in range(m):
-        acc = 0.0
-        row = off + j * m
-        for k in range(m):
-            acc += qm[row + k] * f[k]
-        out[j] = acc
+        out[j] = 0.0
+    for k in range(m):
+        fk = f[k]
+        col = off + k * m
+        for j in range(m):
+            out[j] += qm[col + j] * fk
 
 
 @jit
