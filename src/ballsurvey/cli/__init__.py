@@ -1,5 +1,8 @@
 """Command line: `ballsurvey <command>` (or `python -m ballsurvey <command>`).
 
+Each command is a module of this package, its parser (`add_parser`) beside its `run`; what
+they share is in `options`. Here: the top parser, `main`, the compiling line and Ctrl-C.
+
 Exit status: 0 done; 2 an input error (`ballsurvey.limits.InputError`, raised by validation code:
 one line on stderr, nothing written); 1 a run that failed for a reason outside its input
 (`RunError`, or the system refused a file operation: one line); 130 interrupted (Ctrl-C). Any
