@@ -5,11 +5,13 @@
     integrate/    physics/ and itself (generated kernel sources included)
     classify/     physics/ and itself
     then layers, each importing only its own layer or lower ones:
-    0 _jit, axes, limits, ball   1 physics   2 integrate, classify   3 compose, units, quadrature
-    4 sweep, store, simulate   5 plot, query, find, paper, accuracy, bench, refine, period, gallery,
-    explore
+    0 _jit, _version, axes, limits, ball   1 physics   2 integrate, classify
+    3 compose, units, quadrature, schema   4 sweep, store, simulate
+    5 plot, query, find, paper, accuracy, bench, refine, period, gallery, explore
     6 cli   7 __main__
-The package root (`ballsurvey/__init__.py`) may be imported for `__version__` only.
+The package root (`ballsurvey/__init__.py`) may be imported for `__version__` only. It is the
+public face: for library use it binds every public name as it is imported, so a room below it
+takes `__version__` from `_version` (importing the root would close a cycle).
 """
 from __future__ import annotations
 
@@ -25,10 +27,10 @@ from ballsurvey.integrate.tableaus import FIXED_STEP
 PKG = Path(ballsurvey.__file__).resolve().parent
 
 LAYER = {
-    "_jit": 0, "axes": 0, "limits": 0, "ball": 0,
+    "_jit": 0, "_version": 0, "axes": 0, "limits": 0, "ball": 0,
     "physics": 1,
     "integrate": 2, "classify": 2,
-    "compose": 3, "units": 3, "quadrature": 3,
+    "compose": 3, "units": 3, "quadrature": 3, "schema": 3,
     "sweep": 4, "store": 4, "simulate": 4,
     "plot": 5, "query": 5, "find": 5, "paper": 5, "accuracy": 5, "bench": 5, "refine": 5,
     "period": 5, "gallery": 5, "api": 5, "explore": 5, "fit": 5, "synthetic": 5, "animate": 5,
@@ -36,7 +38,7 @@ LAYER = {
 }
 #: rooms that may import only the rooms named (besides themselves)
 ONLY = {"physics": {"_jit"}, "integrate": {"physics", "_jit"}, "classify": {"physics", "_jit"},
-        "_jit": set(), "axes": set(), "limits": set(), "ball": set()}
+        "_jit": {"_version"}, "_version": set(), "axes": set(), "limits": set(), "ball": set()}
 
 
 def room(module: str) -> str:
