@@ -12,6 +12,10 @@
 The package root (`ballsurvey/__init__.py`) may be imported for `__version__` only. It is the
 public face: for library use it binds every public name as it is imported, so a room below it
 takes `__version__` from `_version` (importing the root would close a cycle).
+
+No import cycle anywhere: in the graph of every import between the package's modules, at module
+level and inside functions, with the names the root binds and the kernel modules bound at run
+time, no module reaches itself.
 """
 from __future__ import annotations
 
@@ -140,6 +144,100 @@ def test_generated_kernel_sources_import_only_physics_and_integrate(method):
 ])
 def test_the_checker_catches_a_broken_rule(module, source):
     assert violations(source, module) != []
+
+
+def import_graph() -> dict[str, set[str]]:
+    """{module: the package modules it imports}, every import counted, module level or inside a
+    function; the root's public names (bound with importlib) and the kernel modules
+    integrate/ binds at run time (generated sources, the adaptive template) included."""
+    graph = {}
+
+    def owner(target: str) -> str:  # 'ballsurvey.store.RESULT' -> 'ballsurvey.store'
+        while "." in target and not _is_module(target):
+            target = target.rsplit(".", 1)[0]
+        return target
+
+    for module, source, is_pkg in _modules():
+        out = graph.setdefault(module, set())
+        out.update(owner(t) for t, _ in imports_of(source, module, is_pkg))
+        for node in ast.walk(ast.parse(source)):  # importlib.import_module(".name", __name__)
+            if (isinstance(node, ast.Call) and getattr(node.func, "attr", None) == "import_module"
+                    and node.args and isinstance(node.args[0], ast.Constant)
+                    and str(node.args[0].value).startswith(".") and is_pkg):
+                out.add(owner(module + node.args[0].value))
+    graph["ballsurvey"] |= {f"ballsurvey.{m}" for m in ballsurvey._PUBLIC.values()}
+    for method in sorted(FIXED_STEP):
+        kernel = f"ballsurvey.integrate.<{method} kernel>"
+        graph["ballsurvey.integrate.ensemble"].add(kernel)
+        graph[kernel] = {owner(t) for t, _ in imports_of(ensemble.kernel_module_source(method),
+                                                         "ballsurvey.integrate.generated")}
+    graph["ballsurvey.integrate.adaptive"].add("ballsurvey.integrate.adaptive_kernel")
+    for module, out in graph.items():
+        out.discard(module)
+    return graph
+
+
+def import_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Cycles [a, b, ..., a]: in each strongly connected group of modules (Tarjan's), the
+    shortest through each of its modules; shortest first."""
+    index, low, stack, on_stack, groups = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            group = {stack.pop()}
+            while v not in group:
+                group.add(stack.pop())
+            on_stack.difference_update(group)
+            if len(group) > 1:
+                groups.append(group)
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    cycles = []
+    for group in groups:  # the shortest way back to each module of the group, inside the group
+        for start in sorted(group):
+            paths, todo, found = {start: [start]}, [start], None
+            while todo and not found:
+                v = todo.pop(0)
+                for w in sorted(graph[v] & group):
+                    if w == start:
+                        found = paths[v] + [start]
+                        break
+                    if w not in paths:
+                        paths[w] = paths[v] + [w]
+                        todo.append(w)
+            k = found.index(min(found))  # each cycle once, from its first module by name
+            cycle = found[k:-1] + found[:k] + [found[k]]
+            if cycle not in cycles:
+                cycles.append(cycle)
+    return sorted(cycles, key=len)
+
+
+def test_no_import_cycle():
+    cycles = import_cycles(import_graph())
+    assert not cycles, "import cycles: " + "; ".join(" -> ".join(c) for c in cycles)
+
+
+def test_the_cycle_finder_names_a_cycle():
+    graph = import_graph()
+    assert "ballsurvey.sweep.engine" in graph["ballsurvey"]  # the root's public names count
+    graph["ballsurvey.store"].add("ballsurvey.sweep.spec")  # the axes' table from the spec,
+    graph["ballsurvey.sweep.spec"].add("ballsurvey.store")  # the variables' from the store
+    cycles = import_cycles(graph)
+    assert ["ballsurvey.store", "ballsurvey.sweep.spec", "ballsurvey.store"] in cycles, cycles
+    graph = import_graph()
+    graph["ballsurvey._jit"].add("ballsurvey")  # a room below the root importing it
+    assert any(c[0] == "ballsurvey" and "ballsurvey._jit" in c for c in import_cycles(graph))
 
 
 def test_ruff_is_clean():
