@@ -5,11 +5,17 @@
     integrate/    physics/ and itself (generated kernel sources included)
     classify/     physics/ and itself
     then layers, each importing only its own layer or lower ones:
-    0 _jit, axes, limits, ball   1 physics   2 integrate, classify   3 compose, units, quadrature
-    4 sweep, store, simulate   5 plot, query, find, paper, accuracy, bench, refine, period, gallery,
-    explore
+    0 _jit, _version, axes, limits, ball   1 physics   2 integrate, classify
+    3 compose, units, quadrature, schema   4 sweep, store, simulate
+    5 plot, query, find, paper, accuracy, bench, refine, period, gallery, explore
     6 cli   7 __main__
-The package root (`ballsurvey/__init__.py`) may be imported for `__version__` only.
+The package root (`ballsurvey/__init__.py`) may be imported for `__version__` only. It is the
+public face: for library use it binds every public name as it is imported, so a room below it
+takes `__version__` from `_version` (importing the root would close a cycle).
+
+No import cycle anywhere: in the graph of every import between the package's modules, at module
+level and inside functions, with the names the root binds and the kernel modules bound at run
+time, no module reaches itself.
 """
 from __future__ import annotations
 
@@ -25,10 +31,10 @@ from ballsurvey.integrate.tableaus import FIXED_STEP
 PKG = Path(ballsurvey.__file__).resolve().parent
 
 LAYER = {
-    "_jit": 0, "axes": 0, "limits": 0, "ball": 0,
+    "_jit": 0, "_version": 0, "axes": 0, "limits": 0, "ball": 0,
     "physics": 1,
     "integrate": 2, "classify": 2,
-    "compose": 3, "units": 3, "quadrature": 3,
+    "compose": 3, "units": 3, "quadrature": 3, "schema": 3,
     "sweep": 4, "store": 4, "simulate": 4,
     "plot": 5, "query": 5, "find": 5, "paper": 5, "accuracy": 5, "bench": 5, "refine": 5,
     "period": 5, "gallery": 5, "api": 5, "explore": 5, "fit": 5, "synthetic": 5, "animate": 5,
@@ -36,7 +42,7 @@ LAYER = {
 }
 #: rooms that may import only the rooms named (besides themselves)
 ONLY = {"physics": {"_jit"}, "integrate": {"physics", "_jit"}, "classify": {"physics", "_jit"},
-        "_jit": set(), "axes": set(), "limits": set(), "ball": set()}
+        "_jit": {"_version"}, "_version": set(), "axes": set(), "limits": set(), "ball": set()}
 
 
 def room(module: str) -> str:
@@ -138,6 +144,100 @@ def test_generated_kernel_sources_import_only_physics_and_integrate(method):
 ])
 def test_the_checker_catches_a_broken_rule(module, source):
     assert violations(source, module) != []
+
+
+def import_graph() -> dict[str, set[str]]:
+    """{module: the package modules it imports}, every import counted, module level or inside a
+    function; the root's public names (bound with importlib) and the kernel modules
+    integrate/ binds at run time (generated sources, the adaptive template) included."""
+    graph = {}
+
+    def owner(target: str) -> str:  # 'ballsurvey.store.RESULT' -> 'ballsurvey.store'
+        while "." in target and not _is_module(target):
+            target = target.rsplit(".", 1)[0]
+        return target
+
+    for module, source, is_pkg in _modules():
+        out = graph.setdefault(module, set())
+        out.update(owner(t) for t, _ in imports_of(source, module, is_pkg))
+        for node in ast.walk(ast.parse(source)):  # importlib.import_module(".name", __name__)
+            if (isinstance(node, ast.Call) and getattr(node.func, "attr", None) == "import_module"
+                    and node.args and isinstance(node.args[0], ast.Constant)
+                    and str(node.args[0].value).startswith(".") and is_pkg):
+                out.add(owner(module + node.args[0].value))
+    graph["ballsurvey"] |= {f"ballsurvey.{m}" for m in ballsurvey._PUBLIC.values()}
+    for method in sorted(FIXED_STEP):
+        kernel = f"ballsurvey.integrate.<{method} kernel>"
+        graph["ballsurvey.integrate.ensemble"].add(kernel)
+        graph[kernel] = {owner(t) for t, _ in imports_of(ensemble.kernel_module_source(method),
+                                                         "ballsurvey.integrate.generated")}
+    graph["ballsurvey.integrate.adaptive"].add("ballsurvey.integrate.adaptive_kernel")
+    for module, out in graph.items():
+        out.discard(module)
+    return graph
+
+
+def import_cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Cycles [a, b, ..., a]: in each strongly connected group of modules (Tarjan's), the
+    shortest through each of its modules; shortest first."""
+    index, low, stack, on_stack, groups = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            group = {stack.pop()}
+            while v not in group:
+                group.add(stack.pop())
+            on_stack.difference_update(group)
+            if len(group) > 1:
+                groups.append(group)
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    cycles = []
+    for group in groups:  # the shortest way back to each module of the group, inside the group
+        for start in sorted(group):
+            paths, todo, found = {start: [start]}, [start], None
+            while todo and not found:
+                v = todo.pop(0)
+                for w in sorted(graph[v] & group):
+                    if w == start:
+                        found = paths[v] + [start]
+                        break
+                    if w not in paths:
+                        paths[w] = paths[v] + [w]
+                        todo.append(w)
+            k = found.index(min(found))  # each cycle once, from its first module by name
+            cycle = found[k:-1] + found[:k] + [found[k]]
+            if cycle not in cycles:
+                cycles.append(cycle)
+    return sorted(cycles, key=len)
+
+
+def test_no_import_cycle():
+    cycles = import_cycles(import_graph())
+    assert not cycles, "import cycles: " + "; ".join(" -> ".join(c) for c in cycles)
+
+
+def test_the_cycle_finder_names_a_cycle():
+    graph = import_graph()
+    assert "ballsurvey.sweep.engine" in graph["ballsurvey"]  # the root's public names count
+    graph["ballsurvey.store"].add("ballsurvey.sweep.spec")  # the axes' table from the spec,
+    graph["ballsurvey.sweep.spec"].add("ballsurvey.store")  # the variables' from the store
+    cycles = import_cycles(graph)
+    assert ["ballsurvey.store", "ballsurvey.sweep.spec", "ballsurvey.store"] in cycles, cycles
+    graph = import_graph()
+    graph["ballsurvey._jit"].add("ballsurvey")  # a room below the root importing it
+    assert any(c[0] == "ballsurvey" and "ballsurvey._jit" in c for c in import_cycles(graph))
 
 
 def test_ruff_is_clean():

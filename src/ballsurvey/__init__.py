@@ -9,8 +9,7 @@ an axis), the `ds.ballsurvey` accessor (label words), `Ball`, `Thresholds`, `LAB
 `ballsurvey.sweep` / `ballsurvey.query` only through `from ballsurvey.sweep import ...` and
 `from ballsurvey.query import ...`.
 """
-__version__ = "0.1.0"
-
+from ._version import __version__
 
 #: this process is the command line (`ballsurvey ...`, `python -m ballsurvey ...`)
 _COMMAND_LINE = False

@@ -10,10 +10,11 @@ process. The generated RK kernel modules (`integrate/ensemble.py`) had the same 
 up: their file name came from the template alone.
 
 The design. `SOURCE_DIGEST` is a SHA-256 over the contents (and relative paths) of every `.py`
-file in `physics/`, `integrate/`, `classify/` and this file, with the package, numba and Python
-versions. Every jitted function of the package is in those directories, and they import nothing
-from the rest of the package (both checked by tests/test_kernel_cache.py), so any code a cached
-function can inline, or any module-level constant it can freeze, is covered by the digest.
+file in `physics/`, `integrate/`, `classify/`, this file and `_version.py`, with the package, numba
+and Python versions. Every jitted function of the package is in those directories, and they
+import nothing from the rest of the package (both checked by tests/test_kernel_cache.py), so any
+code a cached function can inline, or any module-level constant it can freeze, is covered by the
+digest.
 
 * `njit(cache=True, ...)` here is numba's `njit` with a cache whose freshness stamp is numba's own
   stamp *and* `SOURCE_DIGEST`: numba's locator still chooses the directory (next to the source, or
@@ -41,7 +42,7 @@ from pathlib import Path
 
 import numba as nb
 
-from . import __version__
+from ._version import __version__
 
 _PKG = Path(__file__).resolve().parent
 #: directories (relative to the package) whose .py files are digested, with this file
@@ -50,7 +51,7 @@ DIGESTED_DIRS = ("physics", "integrate", "classify")
 
 def digested_files(pkg: Path = _PKG) -> list[Path]:
     """The source files whose contents make SOURCE_DIGEST, in a fixed order."""
-    files = [pkg / "_jit.py"]
+    files = [pkg / "_jit.py", pkg / "_version.py"]
     for d in DIGESTED_DIRS:
         files += sorted((pkg / d).rglob("*.py"))
     return files

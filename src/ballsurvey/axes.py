@@ -1,7 +1,7 @@
 """The one table of launch and ball axes: CF units, long name, units as text, plot label.
 
-Used by the spec (validation and the stored coordinates' attributes, through sweep/spec.py), the
-sweep engine, `plot` and `query`. A new sweep axis is one row here.
+Used by the spec (validation), the store (the stored coordinates' attributes, through `schema`),
+the sweep engine, `plot` and `query`. A new sweep axis is one row here.
 """
 from __future__ import annotations
 

@@ -200,14 +200,12 @@ def prefetch_fallback(parallel: bool) -> None:
     need."""
     import numba
 
-    import ballsurvey
-
     if _HELPER or numba.get_num_threads() < 2 or not idle_core():
         return
     mod = adaptive_kernels(OBSERVER)
     if cached_on_disk(mod.adaptive_one) and (not parallel or cached_on_disk(mod.run_parallel)):
         return
-    root = str(Path(ballsurvey.__file__).resolve().parent.parent)
+    root = str(Path(__file__).resolve().parent.parent)  # the folder that holds ballsurvey/
     path = os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")]))
     parallels = (False, True) if parallel else (False,)
     code = ("from ballsurvey.ball import Ball; from ballsurvey.compose import warm_fallback; "

@@ -21,9 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import __version__
+from .._version import __version__
 from ..limits import InputError, RunError
-from ..store import RESULT_VARIABLES
+from ..schema import RESULT_VARIABLES
 from .plan import plan_chunks
 from .provenance import code_digest
 from .spec import Spec

@@ -14,7 +14,8 @@ import subprocess
 import tempfile
 from pathlib import Path
 
-from .. import __version__, _jit
+from .. import _jit
+from .._version import __version__
 from ..store import CONVENTIONS, REFERENCES
 from .plan import n_steps
 from .spec import Spec

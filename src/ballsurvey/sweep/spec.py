@@ -25,16 +25,14 @@ from pathlib import Path
 import numpy as np
 
 from .. import limits
-from ..axes import AXES, BALL_AXES, LAUNCH_AXES
+from ..axes import BALL_AXES, LAUNCH_AXES
 from ..ball import PRESETS, Ball, tilt_error
 from ..classify.labels import Thresholds
 from ..compose import MAP_METHODS
 from ..integrate.tableaus import FIXED_STEP
 from ..limits import InputError
-from ..store import DEFAULT_VARIABLES, RESULT_VARIABLES
+from ..schema import DEFAULT_VARIABLES, RESULT_VARIABLES
 
-AXIS_UNITS = {k: ax.units for k, ax in AXES.items()}
-AXIS_LONG_NAMES = {k: ax.long_name for k, ax in AXES.items()}
 BALL_KEYS = ("preset", "a", "c", "M", "A", "B", "g", "cut_height")
 RUN_KEYS = ("T", "dt", "method", "rtol", "atol", "mode", "cycles", "observe_every", "block",
             "chunk", "backend")
