@@ -32,7 +32,7 @@ from . import (
 )
 
 # the names callers import from ballsurvey.cli, besides main and build_parser
-from .options import UserError  # noqa: F401
+from .options import UserError, _ignore_more_ctrl_c  # noqa: F401
 from .sweep import _where_the_time_went, sweep_summary  # noqa: F401
 
 #: each command's handler: `build_parser` looks them up here, where a caller may replace one
@@ -64,7 +64,7 @@ def _version() -> str:
     try:
         return version("ballsurvey")
     except PackageNotFoundError:
-        from .. import __version__
+        from .._version import __version__
 
         return __version__
 
@@ -195,15 +195,3 @@ def _main(argv=None) -> int:
         return 130
     _ignore_more_ctrl_c()  # done: a Ctrl-C while the interpreter shuts down changes nothing
     return 0
-
-
-def _ignore_more_ctrl_c() -> None:
-    """After the one line of an interruption, or the work: a burst of Ctrl-C (a key held down)
-    does not cut the exit short into a traceback or a death by signal. The command line only
-    (`ballsurvey._COMMAND_LINE`): `main` called from Python leaves the caller's Ctrl-C alone."""
-    import signal
-    import threading
-
-    command_line = getattr(sys.modules.get("ballsurvey"), "_COMMAND_LINE", False)
-    if command_line and threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGINT, signal.SIG_IGN)

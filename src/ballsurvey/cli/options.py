@@ -3,6 +3,8 @@ files, and the option groups of a launch, a ball, rolling resistance and the dra
 """
 from __future__ import annotations
 
+import sys
+
 from ..limits import InputError
 
 
@@ -179,3 +181,15 @@ def _add_ball_options(parser, default="the paper's truncated billiard ball") -> 
                    help="height (m) of the cap cut off: alone, from the paper's sphere (a = 25.4 "
                         "mm, M = 98.4 g), c, A, B from the geometry; with --ball, its cap")
     g.add_argument("--spec", metavar="SPEC.toml", help="use the [ball] of this sweep spec")
+
+
+def _ignore_more_ctrl_c() -> None:
+    """After the one line of an interruption, or the work: a burst of Ctrl-C (a key held down)
+    does not cut the exit short into a traceback or a death by signal. The command line only
+    (`ballsurvey._COMMAND_LINE`): `main` called from Python leaves the caller's Ctrl-C alone."""
+    import signal
+    import threading
+
+    command_line = getattr(sys.modules.get("ballsurvey"), "_COMMAND_LINE", False)
+    if command_line and threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)

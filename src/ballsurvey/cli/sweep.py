@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .options import _check_cuda, _opt, _out_file
+from .options import _check_cuda, _ignore_more_ctrl_c, _opt, _out_file
 
 
 def run(args):
@@ -79,8 +79,6 @@ def run(args):
             t_cluster = time.perf_counter()
         report["cluster_close_s"] = time.perf_counter() - t_cluster
     except KeyboardInterrupt as exc:  # the run's own account, or one of the saved parts
-        from . import _ignore_more_ctrl_c  # the top level's, imported by now
-
         _ignore_more_ctrl_c()
         again = " ".join(shlex.quote(a) for a in sys.argv[1:] if a != "--resume")
         if isinstance(exc, SweepInterrupted):
