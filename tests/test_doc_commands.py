@@ -54,6 +54,12 @@ SKIP = {
     "ballsurvey bench --headline --backend cuda": "needs a CUDA GPU",
     "ballsurvey bench --backend cuda --launches 4194304": "needs a CUDA GPU",
     "ballsurvey sweep sweeps/gpu-1e8.toml": "1e8 launches on a GPU",
+    "ballsurvey plot results/quadrature-1e8.nc --at phidot0=-3":
+        "needs the 1e8-launch map (sweeps/quadrature-1e8.toml, ~10 min), not made here",
+    "ballsurvey query results/quadrature-1e8.nc --shape square --limit 5":
+        "needs the 1e8-launch map, not made here (tests/test_plot_query.py queries by slabs)",
+    "ballsurvey explore results/quadrature-1e8.nc --at phidot0=-3 --html results/q1e8.html":
+        "needs the 1e8-launch map, not made here",
     "ballsurvey sweep h.toml -v": "h.toml is the headline spec the page writes first (a million "
                                   "launches)",
 }
