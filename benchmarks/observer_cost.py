@@ -61,28 +61,37 @@ def _module(source: str, name: str, **stubs) -> types.ModuleType:
     return mod
 
 
-def _kernel(record, done, **stubs):
-    """The RK4 kernel as `ensemble.make_kernels` binds it (numba inlines `record`), in memory."""
-    kernel = _module(kernel_module_source("rk4"), "observer_cost_kernel", **stubs)
+def _kernel(record, done, sweep=None, event=None, **stubs):
+    """The RK4 kernel as `ensemble.make_kernels` binds it (numba inlines `record`, `sweep` and
+    `event`), in memory; without sweep and event, the kernel that records launch by launch."""
+    split = sweep is not None
+    kernel = _module(kernel_module_source("rk4", split), "observer_cost_kernel", **stubs)
     kernel.record, kernel.done = inlined(record), done
+    if split:
+        kernel.sweep, kernel.event = inlined(sweep), inlined(event)
     return kernel.run_parallel
 
 
 def _observer(**stubs):
     obs = _module(inspect.getsource(observer_module), "observer_cost_observer", **stubs)
-    return obs.observe, obs.cycles_done
+    return obs.observe, obs.cycles_done, obs.observe_sweep, obs.observe_event
 
 
 def variants() -> dict:
     """name -> (kernel, slots); the first is the bare kernel."""
     full = _observer()
     no_invariants = _observer(energy=_zero, jellett=_zero, routh=_zero)
-    physics_free = _observer(energy=_zero, jellett=_zero, routh=_zero, normal_force=_one)
+    # the sweep computes the sample's accelerations itself (the observer's module), the record
+    # of a launch's first sample takes them from the kernel's: both stubbed
+    physics_free = _observer(energy=_zero, jellett=_zero, routh=_zero, normal_force=_one,
+                             accelerations=_no_accelerations)
     return {
         "bare kernel (no observer)": (_kernel(*full), 0),
         "observer, all of it": (_kernel(*full), N_OBS),
+        "  recorded launch by launch (no sweep)": (_kernel(*full[:2]), N_OBS),
         "  without the sample's accelerations": (
-            _kernel(*full, accelerations=_no_accelerations), N_OBS),
+            _kernel(*_observer(accelerations=_no_accelerations),
+                    accelerations=_no_accelerations), N_OBS),
         "  without the invariants (E, J, R)": (_kernel(*no_invariants), N_OBS),
         "  without invariants, normal force, accelerations": (
             _kernel(*physics_free, accelerations=_no_accelerations), N_OBS),
