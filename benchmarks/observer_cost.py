@@ -24,7 +24,7 @@ import numpy as np
 from ballsurvey import bench
 from ballsurvey.classify import observer as observer_module
 from ballsurvey.classify.observer import N_OBS
-from ballsurvey.integrate.binding import inlined
+from ballsurvey.integrate.binding import inlined, inlined_deep
 from ballsurvey.integrate.ensemble import kernel_module_source
 
 N_LAUNCHES, N_STEPS, DT, EVERY, BLOCK = 4096, 2000, 1e-4, 4, 64
@@ -68,7 +68,7 @@ def _kernel(record, done, sweep=None, event=None, **stubs):
     kernel = _module(kernel_module_source("rk4", split), "observer_cost_kernel", **stubs)
     kernel.record, kernel.done = inlined(record), done
     if split:
-        kernel.sweep, kernel.event = inlined(sweep), inlined(event)
+        kernel.sweep, kernel.event = inlined_deep(sweep), inlined(event)
     return kernel.run_parallel
 
 

@@ -28,8 +28,17 @@ import numpy as np
 from .ball import flat_face_theta_of, nondim_params_of
 from .classify import cycle
 from .classify.labels import CODE, Thresholds, label_fields
-from .classify.observer import (N_OBS, O_DE, O_E0, O_TH_MAX, O_TH_MIN, cycles_done, observe,
-                                observe_event, observe_sweep)
+from .classify.observer import (
+    N_OBS,
+    O_DE,
+    O_E0,
+    O_TH_MAX,
+    O_TH_MIN,
+    cycles_done,
+    observe,
+    observe_event,
+    observe_sweep,
+)
 from .classify.step_observer import observe_start, observe_step
 from .integrate import ensemble, lanes
 from .integrate import outcome as oc

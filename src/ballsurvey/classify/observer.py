@@ -37,17 +37,20 @@ path repeats rotated by the change of chi over the cycle: the net turn per cycle
 (chi_last - chi_first) / (cycles), with no atan2 in the hot loop.
 
 The fixed-step CPU kernels observe a sample after the first in two passes: `observe_sweep` over
-all of a block's launches (the running extremes, the invariants' drift and the per-cycle sums:
-arithmetic, comparisons and stores, no call), then `observe_event` for the few launches whose
-thetadot changed sign since their last sample (the extremum located, the cycle closed or the
-corner marked: about one sample in a few hundred). The two leave the record `observe` leaves, bit
-for bit; `observe` itself serves the CUDA kernel, the adaptive fallback and stored samples.
+a tile of launches as one loop that LLVM vectorises (the running extremes, the invariants' drift
+and the per-cycle sums: arithmetic, comparisons and stores at constant offsets in a flat tile of
+records, no call), then `observe_event` for the few launches whose thetadot changed sign since
+their last sample (the extremum located, the cycle closed or the corner marked: about one sample
+in a few hundred). The two leave the record `observe` leaves, bit for bit; `observe` itself
+serves the CUDA kernel, the adaptive fallback, period mode's refilled lanes and stored samples.
 
 All non-dimensional. Used by the ensemble kernel and, on stored samples, by `observe_samples`.
 """
 from __future__ import annotations
 
+import inspect
 import math
+import re
 
 import numpy as np
 
@@ -418,15 +421,42 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
     _keep(obs, i, t, x, y, th, sth, cth, chi, thd, chd, phd, u, w, psid, quad)
 
 
+def _on_tile(fn):
+    """`fn`, a jitted function of (obs, i, ...) that reads and writes launch i's slots as
+    obs[SLOT, i], compiled again from its source for a flat tile of launches: (obs, i, tile, ...)
+    with slot k of launch i at obs[k * tile + i], inlined into its callers.
+
+    A loop over launches that indexes a 2-D record is not vectorised: its rows lie a run-time
+    stride apart, and LLVM gives up checking every pair of them for overlap. In a flat tile
+    whose length `tile` the kernel fixes, the slots lie constant offsets apart."""
+    py = fn.py_func
+    src = inspect.getsource(py)
+    src = src[src.index("def "):]
+    head = f"def {py.__name__}(obs, i,"
+    flat = re.sub(r"obs\[(O_\w+), i\]", r"obs[\1 * tile + i]", src.replace(
+        head, f"def {py.__name__}(obs, i, tile,", 1))
+    if not src.startswith(head) or re.search(r"obs\[(?!O_\w+ \* tile \+ i\])", flat):
+        raise ValueError(f"{py.__name__}: reads its record other than as obs[SLOT, i]")
+    env = {}
+    exec(compile(flat, f"<{py.__name__} on a flat tile>", "exec"), py.__globals__, env)
+    return njit(nogil=True, error_model="numpy", inline="always")(env[py.__name__])
+
+
+_accumulate_tile = _on_tile(_accumulate)
+_keep_tile = _on_tile(_keep)
+
+
 @jit
-def observe_sweep(obs, i, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, c, A, B):
-    """`observe` of a sample after the first, up to its events: the running extremes and sums
+def observe_sweep(obs, i, tile, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, c, A, B):
+    """`observe` of a sample after the first, up to its events, on a flat tile of `tile`
+    launches' records (slot k of launch i at obs[k * tile + i]): the running extremes and sums
     updated, the sample kept where thetadot kept its sign. Returns whether it changed sign (a
     theta extremum since the previous sample): then `observe_event` finishes the sample.
 
-    Arithmetic, comparisons and stores only (no call once inlined): the fixed-step kernels run
-    it over a block's launches as one tight loop and take the rare launches with an event one by
-    one after it. The same record as `observe`, bit for bit."""
+    Arithmetic, comparisons and stores only (no call once inlined), at constant offsets: the
+    fixed-step kernels run it over a tile's launches as one loop that LLVM vectorises, and take
+    the rare launches with an event one by one after it. The same record as `observe`, bit for
+    bit."""
     thdd, chdd, phdd = accelerations(sth, cth, thd, chd, phd, c, A, B)
     u, w, speed, psid, fric, normal = _derive(sth, cth, thd, chd, phd, thdd, chdd, phdd, c,
                                               math.nan, math.nan, math.nan)
@@ -434,11 +464,11 @@ def observe_sweep(obs, i, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, c, A, B
     jel = jellett(sth, cth, thd, chd, phd, c, A, B)
     rou = routh(sth, cth, thd, chd, phd, c, A, B)
     quad = _quadrant(u, w)
-    _accumulate(obs, i, dt, x, y, th, e, jel, rou, fric, normal, psid, speed, quad)
-    p_thd = obs[O_P_THD, i]
+    _accumulate_tile(obs, i, tile, dt, x, y, th, e, jel, rou, fric, normal, psid, speed, quad)
+    p_thd = obs[O_P_THD * tile + i]
     event = (p_thd < 0.0 and thd >= 0.0) or (p_thd > 0.0 and thd <= 0.0)
     if not event:
-        _keep(obs, i, t, x, y, th, sth, cth, chi, thd, chd, phd, u, w, psid, quad)
+        _keep_tile(obs, i, tile, t, x, y, th, sth, cth, chi, thd, chd, phd, u, w, psid, quad)
     return event
 
 

@@ -35,10 +35,11 @@ class Observer(NamedTuple):
     """A streaming observer: `record` one sample, say when a launch is `done` (module docstring).
 
     Optionally `record` in two parts, for kernels that observe many launches at once: `sweep(obs,
-    i, t, dt, x, y, theta, sin theta, cos theta, chi, thetadot, chidot, phidot, c, A, B) -> bool`
-    records a sample after the first with no call (a tight loop over launches) and says
-    whether the launch needs `event` (same arguments but dt) to finish it; the two together
-    leave the record `record` leaves."""
+    i, tile, t, dt, x, y, theta, sin theta, cos theta, chi, thetadot, chidot, phidot, c, A, B) ->
+    bool` records a sample after the first into a flat tile of `tile` launches' records (slot k
+    of launch i at obs[k * tile + i]) with no call, so that a loop over launches vectorises, and
+    says whether the launch needs `event(obs, i, t, x, ...)` (obs: the tile as (slots, tile)) to
+    finish it; the two together leave the record `record` leaves."""
 
     record: Callable
     done: Callable
@@ -87,6 +88,25 @@ def inlined(fn):
     return numba.njit(inline="always", **opts)(fn.py_func)
 
 
+@cache
+def inlined_deep(fn):
+    """`inlined`, with every numba function `fn` calls replaced by its own `inlined_deep` twin
+    (recursively): a loop that calls it then holds no call, which LLVM's loop vectoriser needs
+    (`Observer.sweep`)."""
+    import types
+
+    import numba
+
+    py = fn.py_func
+    env = dict(py.__globals__)
+    for name in py.__code__.co_names:
+        if isinstance(env.get(name), numba.core.registry.CPUDispatcher):
+            env[name] = inlined_deep(env[name])
+    clone = types.FunctionType(py.__code__, env, py.__name__, py.__defaults__, py.__closure__)
+    opts = {k: v for k, v in fn.targetoptions.items() if k in ("nogil", "error_model")}
+    return numba.njit(inline="always", **opts)(clone)
+
+
 def bind(name: str, source: str, observer: Observer | StepObserver | None, *,
          inline_record: bool = False):
     """The module of `source` (a template with a global for each of the observer's functions:
@@ -100,7 +120,8 @@ def bind(name: str, source: str, observer: Observer | StepObserver | None, *,
         text = source + "\n\n# no observer\n"
     else:
         if inline_record:
-            parts = {k: (v if k == "done" else inlined(v)) for k, v in parts.items()}
+            parts = {k: (v if k == "done" else inlined_deep(v) if k == "sweep" else inlined(v))
+                     for k, v in parts.items()}
         text = source + "\n\n# observer bound by ballsurvey.integrate.binding:\n" + "".join(
             f"#   {k} = {_identity(v)}{' (inlined)' if inline_record and k != 'done' else ''}\n"
             for k, v in parts.items())
