@@ -10,9 +10,6 @@ cache is never touched: a stub must not reach a real run). The rows are timed in
 only. Needs only ballsurvey:
 
     python benchmarks/observer_cost.py [--repeats 5]
-    python benchmarks/observer_cost.py --spec sweeps/square-map.toml --nth 4 --T 2
-
-(the second: every 4th launch of a sweep spec, its dt and sampling, over 2 s).
 """
 from __future__ import annotations
 
@@ -27,7 +24,7 @@ import numpy as np
 from ballsurvey import bench
 from ballsurvey.classify import observer as observer_module
 from ballsurvey.classify.observer import N_OBS
-from ballsurvey.integrate.binding import inlined, inlined_deep
+from ballsurvey.integrate.binding import inlined
 from ballsurvey.integrate.ensemble import kernel_module_source
 
 N_LAUNCHES, N_STEPS, DT, EVERY, BLOCK = 4096, 2000, 1e-4, 4, 64
@@ -54,51 +51,38 @@ def _no_record(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thd
     obs[0, i] = t  # one store, so the sample loop is kept
 
 
-def _module(source: str, name: str, filename=None, **stubs) -> types.ModuleType:
+def _module(source: str, name: str, **stubs) -> types.ModuleType:
     """`source` executed as a fresh module, in memory and uncached, with names replaced."""
     mod = types.ModuleType(name)
     mod.__package__ = "ballsurvey.classify"
-    # compiled under its file's name where it has one, so that inspect finds the source of its
-    # functions (the observer compiles some again from their source: `observer._on_tile`)
-    exec(compile(source.replace("cache=True", "cache=False"), filename or f"<{name}>", "exec"),
-         mod.__dict__)
+    exec(compile(source.replace("cache=True", "cache=False"), f"<{name}>", "exec"), mod.__dict__)
     for key, value in stubs.items():
         setattr(mod, key, value)
     return mod
 
 
-def _kernel(record, done, sweep=None, event=None, **stubs):
-    """The RK4 kernel as `ensemble.make_kernels` binds it (numba inlines `record`, `sweep` and
-    `event`), in memory; without sweep and event, the kernel that records launch by launch."""
-    split = sweep is not None
-    kernel = _module(kernel_module_source("rk4", split), "observer_cost_kernel", **stubs)
+def _kernel(record, done, **stubs):
+    """The RK4 kernel as `ensemble.make_kernels` binds it (numba inlines `record`), in memory."""
+    kernel = _module(kernel_module_source("rk4"), "observer_cost_kernel", **stubs)
     kernel.record, kernel.done = inlined(record), done
-    if split:
-        kernel.sweep, kernel.event = inlined_deep(sweep), inlined(event)
     return kernel.run_parallel
 
 
 def _observer(**stubs):
-    obs = _module(inspect.getsource(observer_module), "observer_cost_observer",
-                  observer_module.__file__, **stubs)
-    return obs.observe, obs.cycles_done, obs.observe_sweep, obs.observe_event
+    obs = _module(inspect.getsource(observer_module), "observer_cost_observer", **stubs)
+    return obs.observe, obs.cycles_done
 
 
 def variants() -> dict:
     """name -> (kernel, slots); the first is the bare kernel."""
     full = _observer()
     no_invariants = _observer(energy=_zero, jellett=_zero, routh=_zero)
-    # the sweep computes the sample's accelerations itself (the observer's module), the record
-    # of a launch's first sample takes them from the kernel's: both stubbed
-    physics_free = _observer(energy=_zero, jellett=_zero, routh=_zero, normal_force=_one,
-                             accelerations=_no_accelerations)
+    physics_free = _observer(energy=_zero, jellett=_zero, routh=_zero, normal_force=_one)
     return {
         "bare kernel (no observer)": (_kernel(*full), 0),
         "observer, all of it": (_kernel(*full), N_OBS),
-        "  recorded launch by launch (no sweep)": (_kernel(*full[:2]), N_OBS),
         "  without the sample's accelerations": (
-            _kernel(*_observer(accelerations=_no_accelerations),
-                    accelerations=_no_accelerations), N_OBS),
+            _kernel(*full, accelerations=_no_accelerations), N_OBS),
         "  without the invariants (E, J, R)": (_kernel(*no_invariants), N_OBS),
         "  without invariants, normal force, accelerations": (
             _kernel(*physics_free, accelerations=_no_accelerations), N_OBS),
@@ -109,28 +93,9 @@ def variants() -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
-    ap.add_argument("--spec", help="a fixed-step sweep spec: its launches (every --nth), dt and "
-                                   "sampling instead of bench's, over --T seconds")
-    ap.add_argument("--nth", type=int, default=4)
-    ap.add_argument("--T", type=float, default=2.0)
     args = ap.parse_args()
-    global N_LAUNCHES, N_STEPS, DT, EVERY
-    if args.spec:
-        from ballsurvey.compose import launch_arrays
-        from ballsurvey.sweep.plan import launch_table
-        from ballsurvey.sweep.spec import load_spec
-        from ballsurvey.units import StepPlan
-
-        spec = load_spec(args.spec)
-        y0, params, tu, _ = launch_arrays(launch_table(spec, 0, spec.n_launches))
-        y0 = np.ascontiguousarray(y0[:, ::args.nth])
-        params = np.ascontiguousarray(params[:, ::args.nth])
-        N_LAUNCHES, N_STEPS = y0.shape[1], StepPlan(args.T, spec.dt, tu).n_steps
-        DT, EVERY = spec.dt, spec.observe_every
-        dt = DT / tu
-    else:
-        ball, y0, params, *_ = bench._kernel_launches(N_LAUNCHES, 0)
-        dt = DT / ball.time_unit
+    ball, y0, params, *_ = bench._kernel_launches(N_LAUNCHES, 0)
+    dt = DT / ball.time_unit
     n = y0.shape[1]
 
     def run(kernel, slots):

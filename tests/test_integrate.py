@@ -186,28 +186,3 @@ def test_period_mode_refill_matches_the_block_kernel_bit_for_bit():
     for r in (refill, serial):
         assert np.array_equal(r.obs, obs, equal_nan=True)
         assert np.array_equal(r.outcome, out) and np.array_equal(r.t_stop, t_stop, equal_nan=True)
-
-
-def test_sweep_and_event_leave_the_record_that_record_leaves():
-    """The block kernel observes a sample in two passes (`Observer.sweep` over a tile of
-    launches, vectorised, then `Observer.event` for those with a theta extremum since their last
-    sample); the record, outcome and stop time are those of `Observer.record` fed launch by
-    launch, bit for bit, over launches that roll, rock, loop and blow up."""
-    from ballsurvey.integrate.binding import Observer
-    from ballsurvey.units import launch_state
-
-    rng = np.random.default_rng(5)
-    n = 160
-    y0 = launch_state(rng.uniform(-20, 89.9, n), rng.uniform(-2, 2, n), rng.uniform(-12, 12, n),
-                      rng.uniform(-8, 8, n), TU)
-    params = np.repeat(P[:, None], n, 1)
-    each = Observer(record=OBSERVER.record, done=OBSERVER.done)
-    dt, steps = 2e-3 / TU, 2000  # coarse: some launches blow up
-    for every, block in ((1, 16), (3, 150)):  # blocks of a tile; of 3 tiles, the last partial
-        kw = dict(n_slots=ob.N_OBS, observe_every=every, block=block)
-        two = ensemble.integrate(y0, params, dt, steps, observer=OBSERVER, **kw)
-        one = ensemble.integrate(y0, params, dt, steps, observer=each, **kw)
-        assert (two.outcome == oc.NONFINITE).any() and (two.obs[ob.O_NMAX] >= 3).any()
-        for a, b in ((two.obs, one.obs), (two.outcome, one.outcome), (two.t_stop, one.t_stop),
-                     (two.y_end, one.y_end)):
-            assert np.array_equal(a, b, equal_nan=True)

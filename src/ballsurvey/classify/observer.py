@@ -36,21 +36,11 @@ Over one theta cycle the reduced state (theta, thetadot, chidot, phidot) returns
 path repeats rotated by the change of chi over the cycle: the net turn per cycle is
 (chi_last - chi_first) / (cycles), with no atan2 in the hot loop.
 
-The fixed-step CPU kernels observe a sample after the first in two passes: `observe_sweep` over
-a tile of launches as one loop that LLVM vectorises (the running extremes, the invariants' drift
-and the per-cycle sums: arithmetic, comparisons and stores at constant offsets in a flat tile of
-records, no call), then `observe_event` for the few launches whose thetadot changed sign since
-their last sample (the extremum located, the cycle closed or the corner marked: about one sample
-in a few hundred). The two leave the record `observe` leaves, bit for bit; `observe` itself
-serves the CUDA kernel, the adaptive fallback, period mode's refilled lanes and stored samples.
-
 All non-dimensional. Used by the ensemble kernel and, on stored samples, by `observe_samples`.
 """
 from __future__ import annotations
 
-import inspect
 import math
-import re
 
 import numpy as np
 
@@ -301,9 +291,13 @@ def on_maximum(obs, i, t_ev, th_ev, chi_ev, x_ev, y_ev, psi_ev, speed_ev, psid, 
 
 
 @jit
-def _derive(sth, cth, thd, chd, phd, thdd, chdd, phdd, c, psid_in, fric_in, normal_in):
-    """A sample's speeds in the frame turning with the heading chi (Eqs. 6-7), G's speed, the
-    path's heading rate, |F_h|/N and N/(M g) (psid_in, fric_in, normal_in where finite)."""
+def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, chdd, phdd, c, A, B,
+            psid_in=math.nan, fric_in=math.nan, normal_in=math.nan):
+    """Update launch i's slots with one sample (time t, step dt since the previous sample).
+
+    psid_in, fric_in, normal_in: the path's heading rate, |F_h|/N and N/(M g) computed without
+    the Euler chart (fixed-frame integration near theta = 90 deg); NaN: compute them here."""
+    # --- speeds in the frame turning with the heading chi (Eqs. 6-7) and their rates -----------
     u, w = heading_velocity(sth, cth, thd, chd, phd, c)
     v2 = u * u + w * w
     speed = math.sqrt(v2)
@@ -319,71 +313,62 @@ def _derive(sth, cth, thd, chd, phd, thdd, chdd, phdd, c, psid_in, fric_in, norm
         normal = normal_force(sth, cth, thd, thdd, c)  # N / (M g), Eq. (20)
         fric = (math.sqrt(ah_par * ah_par + ah_perp * ah_perp) / normal if normal > 0.0
                 else math.inf)
-    return u, w, speed, psid, fric, normal
-
-
-@jit
-def _accumulate(obs, i, dt, x, y, th, e, jel, rou, fric, normal, psid, speed, quad):
-    """The running extremes and per-cycle sums, with one more (not the first) sample."""
-    obs[O_TH_MIN, i] = min(obs[O_TH_MIN, i], th)
-    obs[O_TH_MAX, i] = max(obs[O_TH_MAX, i], th)
-    obs[O_DE, i] = max(obs[O_DE, i], abs(e - obs[O_E0, i]))
-    obs[O_DJ, i] = max(obs[O_DJ, i], abs(jel - obs[O_J0, i]))
-    obs[O_DR, i] = max(obs[O_DR, i], abs(rou - obs[O_R0, i]))
-    obs[O_FRIC, i] = max(obs[O_FRIC, i], fric)
-    obs[O_NMIN, i] = min(obs[O_NMIN, i], normal)
-    # per-cycle accumulators (rectangle rule over the previous interval)
-    obs[O_A_PSID, i] = max(obs[O_A_PSID, i], abs(psid))
-    obs[O_A_TURN, i] += abs(psid) * dt
-    obs[O_A_RAW, i] += psid * dt
-    obs[O_A_VMIN, i] = min(obs[O_A_VMIN, i], speed)
-    obs[O_A_VINT, i] += speed * dt
-    dq = quad - obs[O_P_QUAD, i]
-    if dq > 2.0:
-        dq -= 4.0
-    elif dq < -2.0:
-        dq += 4.0
-    if abs(dq) < 2.0:  # a jump of two quadrants passes through v = 0: a cusp, not a turn
-        obs[O_A_QUART, i] += dq
-    # distance from the orbit centre (NaN until it is known: min/max then stay NaN-free);
-    # a square root, not hypot: a library call on every sample (measured: 18 % of the
-    # observer's cost), and these distances are far from overflow
-    rx, ry = x - obs[O_RC_X, i], y - obs[O_RC_Y, i]
-    r = math.sqrt(rx * rx + ry * ry)
-    if r < obs[O_A_RMIN, i]:
-        obs[O_A_RMIN, i] = r
-    if r > obs[O_A_RMAX, i]:
-        obs[O_A_RMAX, i] = r
-    obs[O_A_NSAMP, i] += 1.0
-    obs[O_TH_STEP, i] = max(obs[O_TH_STEP, i], abs(th - obs[O_P_TH, i]))
-
-
-@jit
-def _events(obs, i, t, x, y, sth, cth, chi, thd, chd, phd, u, w, psid, speed, c, A, B):
-    """A theta extremum between the previous sample and this one (thetadot changed sign):
-    located (`_locate`) and handed to `on_minimum` or `on_maximum`."""
-    # --- theta minimum: thetadot turns from - to + (where the path turns: a corner) -----------
-    if obs[O_P_THD, i] < 0.0 and thd >= 0.0:
-        _, _, th_ev, _, xm, ym, _, _ = _locate(obs, i, t, x, y, sth, cth, chi, thd, chd,
-                                               phd, u, w, psid, c, A, B)
-        on_minimum(obs, i, th_ev, xm, ym)
-    # --- theta maximum: thetadot turns from + to - --------------------------------------------
-    # (one between the launch and the first sample after it is not a cycle's start: the
-    # launch's own sample can sit within 1e-7 deg of the vertical, where its Euler rates,
-    # and so the path's heading read there, are rounding; the first cycle starts at the next)
-    if obs[O_P_THD, i] > 0.0 and thd <= 0.0:
-        _, t_ev, th_ev, chi_ev, x_ev, y_ev, psi_ev, speed_ev = _locate(
-            obs, i, t, x, y, sth, cth, chi, thd, chd, phd, u, w, psid, c, A, B)
-        if obs[O_NMAX, i] > 0.0 or obs[O_A_NSAMP, i] > 1.0:
-            on_maximum(obs, i, t_ev, th_ev, chi_ev, x_ev, y_ev, psi_ev, speed_ev, psid,
-                       speed)
-        else:
-            obs[O_TH_MAX, i] = max(obs[O_TH_MAX, i], th_ev)
-
-
-@jit
-def _keep(obs, i, t, x, y, th, sth, cth, chi, thd, chd, phd, u, w, psid, quad):
-    """This sample's values, kept for the next (its interval's start)."""
+    # --- invariants -----------------------------------------------------------------------------
+    e = energy(sth, cth, thd, chd, phd, c, A, B)
+    jel = jellett(sth, cth, thd, chd, phd, c, A, B)
+    rou = routh(sth, cth, thd, chd, phd, c, A, B)
+    quad = _quadrant(u, w)
+    if first:
+        start_record(obs, i, th, e, jel, rou, fric, normal, speed, thd, thdd)
+    else:
+        obs[O_TH_MIN, i] = min(obs[O_TH_MIN, i], th)
+        obs[O_TH_MAX, i] = max(obs[O_TH_MAX, i], th)
+        obs[O_DE, i] = max(obs[O_DE, i], abs(e - obs[O_E0, i]))
+        obs[O_DJ, i] = max(obs[O_DJ, i], abs(jel - obs[O_J0, i]))
+        obs[O_DR, i] = max(obs[O_DR, i], abs(rou - obs[O_R0, i]))
+        obs[O_FRIC, i] = max(obs[O_FRIC, i], fric)
+        obs[O_NMIN, i] = min(obs[O_NMIN, i], normal)
+        # per-cycle accumulators (rectangle rule over the previous interval)
+        obs[O_A_PSID, i] = max(obs[O_A_PSID, i], abs(psid))
+        obs[O_A_TURN, i] += abs(psid) * dt
+        obs[O_A_RAW, i] += psid * dt
+        obs[O_A_VMIN, i] = min(obs[O_A_VMIN, i], speed)
+        obs[O_A_VINT, i] += speed * dt
+        dq = quad - obs[O_P_QUAD, i]
+        if dq > 2.0:
+            dq -= 4.0
+        elif dq < -2.0:
+            dq += 4.0
+        if abs(dq) < 2.0:  # a jump of two quadrants passes through v = 0: a cusp, not a turn
+            obs[O_A_QUART, i] += dq
+        # distance from the orbit centre (NaN until it is known: min/max then stay NaN-free);
+        # a square root, not hypot: a library call on every sample (measured: 18 % of the
+        # observer's cost), and these distances are far from overflow
+        rx, ry = x - obs[O_RC_X, i], y - obs[O_RC_Y, i]
+        r = math.sqrt(rx * rx + ry * ry)
+        if r < obs[O_A_RMIN, i]:
+            obs[O_A_RMIN, i] = r
+        if r > obs[O_A_RMAX, i]:
+            obs[O_A_RMAX, i] = r
+        # --- theta minimum: thetadot turns from - to + (where the path turns: a corner) -------
+        obs[O_A_NSAMP, i] += 1.0
+        obs[O_TH_STEP, i] = max(obs[O_TH_STEP, i], abs(th - obs[O_P_TH, i]))
+        if obs[O_P_THD, i] < 0.0 and thd >= 0.0:
+            _, _, th_ev, _, xm, ym, _, _ = _locate(obs, i, t, x, y, sth, cth, chi, thd, chd,
+                                                   phd, u, w, psid, c, A, B)
+            on_minimum(obs, i, th_ev, xm, ym)
+        # --- theta maximum: thetadot turns from + to - ----------------------------------------
+        # (one between the launch and the first sample after it is not a cycle's start: the
+        # launch's own sample can sit within 1e-7 deg of the vertical, where its Euler rates,
+        # and so the path's heading read there, are rounding; the first cycle starts at the next)
+        if obs[O_P_THD, i] > 0.0 and thd <= 0.0:
+            _, t_ev, th_ev, chi_ev, x_ev, y_ev, psi_ev, speed_ev = _locate(
+                obs, i, t, x, y, sth, cth, chi, thd, chd, phd, u, w, psid, c, A, B)
+            if obs[O_NMAX, i] > 0.0 or obs[O_A_NSAMP, i] > 1.0:
+                on_maximum(obs, i, t_ev, th_ev, chi_ev, x_ev, y_ev, psi_ev, speed_ev, psid,
+                           speed)
+            else:
+                obs[O_TH_MAX, i] = max(obs[O_TH_MAX, i], th_ev)
     obs[O_P_THD, i] = thd
     obs[O_P_T, i] = t
     obs[O_P_CHI, i] = chi
@@ -398,89 +383,6 @@ def _keep(obs, i, t, x, y, th, sth, cth, chi, thd, chd, phd, u, w, psid, quad):
     obs[O_P_PSID, i] = psid
     obs[O_P_PHD, i] = phd
     obs[O_P_TH, i] = th
-
-
-@jit
-def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, chdd, phdd, c, A, B,
-            psid_in=math.nan, fric_in=math.nan, normal_in=math.nan):
-    """Update launch i's slots with one sample (time t, step dt since the previous sample).
-
-    psid_in, fric_in, normal_in: the path's heading rate, |F_h|/N and N/(M g) computed without
-    the Euler chart (fixed-frame integration near theta = 90 deg); NaN: compute them here."""
-    u, w, speed, psid, fric, normal = _derive(sth, cth, thd, chd, phd, thdd, chdd, phdd, c,
-                                              psid_in, fric_in, normal_in)
-    e = energy(sth, cth, thd, chd, phd, c, A, B)
-    jel = jellett(sth, cth, thd, chd, phd, c, A, B)
-    rou = routh(sth, cth, thd, chd, phd, c, A, B)
-    quad = _quadrant(u, w)
-    if first:
-        start_record(obs, i, th, e, jel, rou, fric, normal, speed, thd, thdd)
-    else:
-        _accumulate(obs, i, dt, x, y, th, e, jel, rou, fric, normal, psid, speed, quad)
-        _events(obs, i, t, x, y, sth, cth, chi, thd, chd, phd, u, w, psid, speed, c, A, B)
-    _keep(obs, i, t, x, y, th, sth, cth, chi, thd, chd, phd, u, w, psid, quad)
-
-
-def _on_tile(fn):
-    """`fn`, a jitted function of (obs, i, ...) that reads and writes launch i's slots as
-    obs[SLOT, i], compiled again from its source for a flat tile of launches: (obs, i, tile, ...)
-    with slot k of launch i at obs[k * tile + i], inlined into its callers.
-
-    A loop over launches that indexes a 2-D record is not vectorised: its rows lie a run-time
-    stride apart, and LLVM gives up checking every pair of them for overlap. In a flat tile
-    whose length `tile` the kernel fixes, the slots lie constant offsets apart."""
-    py = fn.py_func
-    src = inspect.getsource(py)
-    src = src[src.index("def "):]
-    head = f"def {py.__name__}(obs, i,"
-    flat = re.sub(r"obs\[(O_\w+), i\]", r"obs[\1 * tile + i]", src.replace(
-        head, f"def {py.__name__}(obs, i, tile,", 1))
-    if not src.startswith(head) or re.search(r"obs\[(?!O_\w+ \* tile \+ i\])", flat):
-        raise ValueError(f"{py.__name__}: reads its record other than as obs[SLOT, i]")
-    env = {}
-    exec(compile(flat, f"<{py.__name__} on a flat tile>", "exec"), py.__globals__, env)
-    return njit(nogil=True, error_model="numpy", inline="always")(env[py.__name__])
-
-
-_accumulate_tile = _on_tile(_accumulate)
-_keep_tile = _on_tile(_keep)
-
-
-@jit
-def observe_sweep(obs, i, tile, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, c, A, B):
-    """`observe` of a sample after the first, up to its events, on a flat tile of `tile`
-    launches' records (slot k of launch i at obs[k * tile + i]): the running extremes and sums
-    updated, the sample kept where thetadot kept its sign. Returns whether it changed sign (a
-    theta extremum since the previous sample): then `observe_event` finishes the sample.
-
-    Arithmetic, comparisons and stores only (no call once inlined), at constant offsets: the
-    fixed-step kernels run it over a tile's launches as one loop that LLVM vectorises, and take
-    the rare launches with an event one by one after it. The same record as `observe`, bit for
-    bit."""
-    thdd, chdd, phdd = accelerations(sth, cth, thd, chd, phd, c, A, B)
-    u, w, speed, psid, fric, normal = _derive(sth, cth, thd, chd, phd, thdd, chdd, phdd, c,
-                                              math.nan, math.nan, math.nan)
-    e = energy(sth, cth, thd, chd, phd, c, A, B)
-    jel = jellett(sth, cth, thd, chd, phd, c, A, B)
-    rou = routh(sth, cth, thd, chd, phd, c, A, B)
-    quad = _quadrant(u, w)
-    _accumulate_tile(obs, i, tile, dt, x, y, th, e, jel, rou, fric, normal, psid, speed, quad)
-    p_thd = obs[O_P_THD * tile + i]
-    event = (p_thd < 0.0 and thd >= 0.0) or (p_thd > 0.0 and thd <= 0.0)
-    if not event:
-        _keep_tile(obs, i, tile, t, x, y, th, sth, cth, chi, thd, chd, phd, u, w, psid, quad)
-    return event
-
-
-@jit
-def observe_event(obs, i, t, x, y, th, sth, cth, chi, thd, chd, phd, c, A, B):
-    """The rest of a sample that `observe_sweep` flagged: the theta extremum located and its
-    cycle closed or corner marked, then the sample kept."""
-    thdd, chdd, phdd = accelerations(sth, cth, thd, chd, phd, c, A, B)
-    u, w, speed, psid, _, _ = _derive(sth, cth, thd, chd, phd, thdd, chdd, phdd, c, math.nan,
-                                      math.nan, math.nan)
-    _events(obs, i, t, x, y, sth, cth, chi, thd, chd, phd, u, w, psid, speed, c, A, B)
-    _keep(obs, i, t, x, y, th, sth, cth, chi, thd, chd, phd, u, w, psid, _quadrant(u, w))
 
 
 @jit

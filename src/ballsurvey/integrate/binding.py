@@ -32,19 +32,10 @@ from .._jit import SOURCE_DIGEST
 
 
 class Observer(NamedTuple):
-    """A streaming observer: `record` one sample, say when a launch is `done` (module docstring).
-
-    Optionally `record` in two parts, for kernels that observe many launches at once: `sweep(obs,
-    i, tile, t, dt, x, y, theta, sin theta, cos theta, chi, thetadot, chidot, phidot, c, A, B) ->
-    bool` records a sample after the first into a flat tile of `tile` launches' records (slot k
-    of launch i at obs[k * tile + i]) with no call, so that a loop over launches vectorises, and
-    says whether the launch needs `event(obs, i, t, x, ...)` (obs: the tile as (slots, tile)) to
-    finish it; the two together leave the record `record` leaves."""
+    """A streaming observer: `record` one sample, say when a launch is `done` (module docstring)."""
 
     record: Callable
     done: Callable
-    sweep: Callable | None = None
-    event: Callable | None = None
 
 
 class StepObserver(NamedTuple):
@@ -88,43 +79,22 @@ def inlined(fn):
     return numba.njit(inline="always", **opts)(fn.py_func)
 
 
-@cache
-def inlined_deep(fn):
-    """`inlined`, with every numba function `fn` calls replaced by its own `inlined_deep` twin
-    (recursively): a loop that calls it then holds no call, which LLVM's loop vectoriser needs
-    (`Observer.sweep`)."""
-    import types
-
-    import numba
-
-    py = fn.py_func
-    env = dict(py.__globals__)
-    for name in py.__code__.co_names:
-        if isinstance(env.get(name), numba.core.registry.CPUDispatcher):
-            env[name] = inlined_deep(env[name])
-    clone = types.FunctionType(py.__code__, env, py.__name__, py.__defaults__, py.__closure__)
-    opts = {k: v for k, v in fn.targetoptions.items() if k in ("nogil", "error_model")}
-    return numba.njit(inline="always", **opts)(clone)
-
-
 def bind(name: str, source: str, observer: Observer | StepObserver | None, *,
          inline_record: bool = False):
     """The module of `source` (a template with a global for each of the observer's functions:
     `record` and `done`, or `start`, `step` and `done`) bound to `observer` (None: a kernel with
     no observer; its module is cached all the same). inline_record: numba inlines the observer's
     functions other than `done` into the kernel (`inlined`)."""
-    # the observer's functions by name (parts it does not have left out)
-    parts = {} if observer is None else {k: v for k, v in observer._asdict().items()
-                                         if v is not None}
     if observer is None:
         text = source + "\n\n# no observer\n"
     else:
         if inline_record:
-            parts = {k: (v if k == "done" else inlined_deep(v) if k == "sweep" else inlined(v))
-                     for k, v in parts.items()}
+            observer = observer._replace(**{k: inlined(getattr(observer, k))
+                                            for k in observer._fields if k != "done"})
         text = source + "\n\n# observer bound by ballsurvey.integrate.binding:\n" + "".join(
-            f"#   {k} = {_identity(v)}{' (inlined)' if inline_record and k != 'done' else ''}\n"
-            for k, v in parts.items())
+            f"#   {k} = {_identity(getattr(observer, k))}"
+            f"{' (inlined)' if inline_record and k != 'done' else ''}\n"
+            for k in observer._fields)
     digest = hashlib.sha256(f"{text}\0{SOURCE_DIGEST}".encode()).hexdigest()[:16]
     modname = f"ballsurvey_{name}_{digest}"
     if modname in _MODULES:
@@ -144,11 +114,13 @@ def bind(name: str, source: str, observer: Observer | StepObserver | None, *,
         mod = importlib.import_module(modname)
     except OSError:  # read-only home: compile in memory, without the on-disk cache
         mod = type(sys)(modname)
-        for k, v in parts.items():
-            setattr(mod, k, v)
+        if observer is not None:
+            for k in observer._fields:
+                setattr(mod, k, getattr(observer, k))
         exec(compile(text.replace("cache=True", "cache=False"), f"<{modname}>", "exec"),
              mod.__dict__)
-    for k, v in parts.items():
-        setattr(mod, k, v)
+    if observer is not None:
+        for k in observer._fields:
+            setattr(mod, k, getattr(observer, k))
     _MODULES[modname] = mod
     return mod

@@ -10,12 +10,8 @@ the angles, so the right-hand side is pure arithmetic: no scalar library calls, 
 vectorisation (this numba has no SVML).
 
 The observer is handed in (`binding.Observer`: record a sample, say when a launch is done); the
-kernel knows nothing of what it computes. An observer that records in two parts (`sweep`, then
-`event` for the launches it flags) is fed a tile of TILE launches at a time: `sweep` over all of
-them in one loop that LLVM vectorises (the record of a tile is flat, slot k of launch j at
-k * TILE + j: constant offsets), then `event` launch by launch for the few it flagged. The
-kernel's own verdict on each launch (an outcome code of `outcome.py` and the time it stopped) is
-returned beside the observer's record.
+kernel knows nothing of what it computes. The kernel's own verdict on each launch (an outcome code
+of `outcome.py` and the time it stopped) is returned beside the observer's record.
 
 The method is data: `make_kernels(method, observer)` writes the stage expressions from the Butcher
 coefficients into one kernel source (as scipy's rk.py keeps one stepper for every tableau) and
@@ -27,7 +23,6 @@ All non-dimensional (lengths / a, times / sqrt(a/g)).
 """
 from __future__ import annotations
 
-import textwrap
 from functools import cache
 
 import numpy as np
@@ -47,15 +42,11 @@ def run_block(y0, params, dt, n_steps, lo, hi, cos_min, observer_on, observe_eve
     pb = params[2, lo:hi].copy()
     alive = np.ones(m, dtype=np.bool_)
     n_obs = obs.shape[0]
-    # the block's records in flat tiles of TILE launches: slot k of launch i at
-    # obs_t[i // TILE, k * TILE + i % TILE] (`Observer.sweep`)
-    n_tiles = (m + TILE - 1) // TILE
-    obs_t = np.full((n_tiles, n_obs * TILE), np.nan)
+    obs_l = np.full((n_obs, m), np.nan)
     status = np.zeros(m, dtype=np.int8)
     t_stop = np.full(m, np.nan)
     n_rec = traj.shape[0]
     t_seen = 0.0
-    flagged = np.zeros(m, dtype=np.bool_)
 {consts}
     for n in range(n_steps + 1):
         t = n * dt
@@ -64,7 +55,15 @@ def run_block(y0, params, dt, n_steps, lo, hi, cos_min, observer_on, observe_eve
             for i in range(m):
 {record}
         if observer_on and (n % observe_every == 0 or n == n_steps):
-{observe}
+            for i in range(m):
+                if alive[i]:
+                    thdd, chdd, phdd = accelerations(r8[i], r9[i], r5[i], r6[i], r7[i],
+                                                     pc[i], pa[i], pb[i])
+                    record(obs_l, i, n == 0, t, t - t_seen, r0[i], r1[i], r2[i], r8[i], r9[i],
+                           r3[i], r5[i], r6[i], r7[i], thdd, chdd, phdd, pc[i], pa[i], pb[i],
+                           math.nan, math.nan, math.nan)
+                    if stop_after > 0 and done(obs_l, i, stop_after):
+                        alive[i] = False  # period mode: enough theta cycles seen
             t_seen = t
             if stop_after > 0 and n_rec == 0:
                 n_alive = 0
@@ -93,7 +92,7 @@ def run_block(y0, params, dt, n_steps, lo, hi, cos_min, observer_on, observe_eve
 {store}
     for k in range(n_obs):
         for i in range(m):
-            obs[k, lo + i] = obs_t[i // TILE, k * TILE + i % TILE]
+            obs[k, lo + i] = obs_l[k, i]
     for i in range(m):
         outcome[lo + i] = status[i]
         t_stop_out[lo + i] = t_stop[i]
@@ -176,46 +175,6 @@ def run_refill(y0, params, dt, n_steps, lo, hi, lanes, cos_min, observe_every, o
 '''
 
 
-#: the sample, launch by launch (`Observer.record`)
-_OBSERVE_EACH = '''            for tb in range(n_tiles):
-                ot = obs_t[tb]
-                o2 = ot.reshape((n_obs, TILE))
-                for j in range(min(TILE, m - tb * TILE)):
-                    i = tb * TILE + j
-                    if alive[i]:
-                        thdd, chdd, phdd = accelerations(r8[i], r9[i], r5[i], r6[i], r7[i],
-                                                         pc[i], pa[i], pb[i])
-                        record(o2, j, n == 0, t, t - t_seen, r0[i], r1[i], r2[i], r8[i],
-                               r9[i], r3[i], r5[i], r6[i], r7[i], thdd, chdd, phdd, pc[i],
-                               pa[i], pb[i], math.nan, math.nan, math.nan)
-                        if stop_after > 0 and done(o2, j, stop_after):
-                            alive[i] = False  # period mode: enough theta cycles seen'''
-
-#: the sample after the first in two passes (`Observer.sweep`, `Observer.event`): one loop over
-#: a tile's launches with no call in it, at constant offsets in the flat tile, which LLVM
-#: vectorises, then the launches it flagged (a theta extremum since their last sample: about
-#: one sample in a few hundred) one by one; the same record as `_OBSERVE_EACH`
-_OBSERVE_SWEEP = '''            if n == 0:
-{each}
-            else:
-                dt_seen = t - t_seen
-                for tb in range(n_tiles):
-                    ot = obs_t[tb]
-                    o2 = ot.reshape((n_obs, TILE))
-                    i0 = tb * TILE
-                    nt = min(TILE, m - i0)
-                    n_flagged = sweep_tile(ot, i0, nt, alive, flagged, t, dt_seen, r0, r1, r2, r3,
-                                           r5, r6, r7, r8, r9, pc, pa, pb)
-                    if n_flagged > 0 or stop_after > 0:
-                        for j in range(nt):
-                            i = i0 + j
-                            if flagged[i]:
-                                event(o2, j, t, r0[i], r1[i], r2[i], r8[i], r9[i], r3[i],
-                                      r5[i], r6[i], r7[i], pc[i], pa[i], pb[i])
-                            if stop_after > 0 and alive[i] and done(o2, j, stop_after):
-                                alive[i] = False  # period mode: enough theta cycles seen'''
-
-
 _STEP = '''        # the step, in place: only the state rows are stored, so LLVM vectorises it
         for i in range(m):
             c = pc[i]
@@ -226,10 +185,8 @@ _STEP = '''        # the step, in place: only the state rows are stored, so LLVM
 {update}'''
 
 
-def _kernel_source(tab: Tableau, split: bool) -> str:
+def _kernel_source(tab: Tableau) -> str:
     v = range(N_FAST)
-    each = _OBSERVE_EACH
-    observe = (_OBSERVE_SWEEP.format(each=textwrap.indent(each, "    ")) if split else each)
     stages, update = stage_source(tab, N_FAST, " " * 12, lane="[i]")
     consts = step_constants(tab, " " * 4)
     step = _STEP.format(tuple_r=", ".join(f"r{q}[i]" for q in v), stages=stages, update=update)
@@ -243,30 +200,8 @@ def _kernel_source(tab: Tableau, split: bool) -> str:
         record="\n".join(f"                traj[rec, {q}, lo + i] = r{q}[i]" for q in v),
         step=step,
         store="\n".join(f"        y_end[{q}, lo + i] = r{q}[i]" for q in v),
-        consts=consts, observe=observe,
+        consts=consts,
     )
-
-
-_SWEEP_TILE = '''
-
-@njit(nogil=True, error_model='numpy', cache=True, _nrt=False)
-def sweep_tile(ot, i0, nt, alive, flagged, t, dt, r0, r1, r2, r3, r5, r6, r7, r8, r9, pc, pa,
-               pb):
-    """`sweep` over launches i0 .. i0 + nt - 1 of a block, whose records are the flat tile ot;
-    flags those that need `event`, returns how many. Compiled without reference counts (it
-    allocates nothing): numba counts the references of an array handed to an inlined function,
-    and those calls, pruned only after LLVM's loop vectoriser has run, keep the loop scalar."""
-    n_flagged = 0
-    for j in range(nt):
-        i = i0 + j
-        flag = False
-        if alive[i]:
-            flag = sweep(ot, j, TILE, t, dt, r0[i], r1[i], r2[i], r8[i], r9[i], r3[i], r5[i],
-                         r6[i], r7[i], pc[i], pa[i], pb[i])
-        flagged[i] = flag
-        n_flagged += flag
-    return n_flagged
-'''
 
 
 _PARALLEL = '''
@@ -302,18 +237,14 @@ from ballsurvey.integrate.outcome import CHART_SINGULAR, NONFINITE
 from ballsurvey.physics.euler import accelerations
 from ballsurvey.physics.fast import fast_rhs
 
-#: launches in a tile of the block kernel's observer record
-TILE = 64
 # the observer, handed in by ballsurvey.integrate.binding.bind before anything is compiled
 record = None
 done = None
-sweep = None
-event = None
 """
 
 
-def _kernel_module_source(method: str, split: bool) -> str:
-    body = (_SWEEP_TILE if split else "") + _kernel_source(FIXED_STEP[method], split) + _PARALLEL
+def _kernel_module_source(method: str) -> str:
+    body = _kernel_source(FIXED_STEP[method]) + _PARALLEL
     # cached with the package's digest-stamped cache (_jit.py), like the functions they inline
     cached = "\n@njit(nogil=True, error_model='numpy', cache=True)"
     body = body.replace("\ndef run_block(", cached + "\ndef run_block(")
@@ -329,12 +260,11 @@ def _kernel_module_source(method: str, split: bool) -> str:
     return _HEADER + body
 
 
-def kernel_module_source(method: str, split: bool = True) -> str:
-    """The generated kernel module's text for a fixed-step method named in FIXED_STEP; split:
-    it observes with `Observer.sweep` and `Observer.event` (else `record` alone)."""
+def kernel_module_source(method: str) -> str:
+    """The generated kernel module's text for a fixed-step method named in FIXED_STEP."""
     if method not in FIXED_STEP:
         raise ValueError(f"unknown method {method!r}; known: {', '.join(FIXED_STEP)}")
-    return _kernel_module_source(method, split)
+    return _kernel_module_source(method)
 
 
 @cache
@@ -355,8 +285,7 @@ def make_kernels(method: str, observer: Observer):
     caller again; about a second). Both run the same block kernel, so their results are
     identical; likewise run_parallel_refill and run_refill (one group) in period mode.
     """
-    split = observer.sweep is not None and observer.event is not None
-    mod = bind(f"rk_{method}", kernel_module_source(method, split), observer, inline_record=True)
+    mod = bind(f"rk_{method}", kernel_module_source(method), observer, inline_record=True)
     return mod.run_parallel, mod.run_block, mod.run_parallel_refill, mod.run_refill
 
 
