@@ -45,15 +45,21 @@ SCRIPT = textwrap.dedent('''
 ''')
 
 
-def test_cuda_kernel_matches_cpu_in_the_simulator():
+def run_in_simulator(script: str) -> None:
+    """Run a script in a fresh Python with numba's CUDA simulator on; it must print "ok" last.
+    Skipped where numba has no CUDA target at all."""
     try:
         import numba.cuda  # noqa: F401  (only to know whether the CUDA target exists at all)
     except ImportError:
         pytest.skip("numba has no CUDA target here")
     env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")
-    r = subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True, env=env,
+    r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env,
                        timeout=600)
     assert r.returncode == 0 and r.stdout.strip().endswith("ok"), r.stderr[-3000:]
+
+
+def test_cuda_kernel_matches_cpu_in_the_simulator():
+    run_in_simulator(SCRIPT)
 
 
 def test_kernel_is_generated_from_the_tableau():
@@ -258,14 +264,7 @@ def test_record_tiles_hold_each_launch_in_its_column():
     """The record lives on the card as (slot, lane) tiles of TILE launches: an observer with
     few or many slots (the kernel is compiled for each count) finds launch i's slots in column
     i after the batches and the part tiles are put back together, and its `done` sees them."""
-    try:
-        import numba.cuda  # noqa: F401
-    except ImportError:
-        pytest.skip("numba has no CUDA target here")
-    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")
-    r = subprocess.run([sys.executable, "-c", TILE_SCRIPT], capture_output=True, text=True,
-                       env=env, timeout=600)
-    assert r.returncode == 0 and r.stdout.strip().endswith("ok"), r.stderr[-3000:]
+    run_in_simulator(TILE_SCRIPT)
 
 
 def test_ptxas_figures_of_the_kernel_in_use():
@@ -340,14 +339,7 @@ print("ok")
 def test_quadrature_per_launch_kernel_matches_cpu_in_the_simulator():
     """The quadrature's per-launch function re-targeted to CUDA (one thread a launch, its scratch
     in the thread's local memory) gives the CPU kernel's record and statuses."""
-    try:
-        import numba.cuda  # noqa: F401
-    except ImportError:
-        pytest.skip("numba has no CUDA target here")
-    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")
-    r = subprocess.run([sys.executable, "-c", QUAD_SCRIPT], capture_output=True, text=True,
-                       env=env, timeout=600)
-    assert r.returncode == 0 and r.stdout.strip().endswith("ok"), r.stderr[-3000:]
+    run_in_simulator(QUAD_SCRIPT)
 
 
 def test_sweep_by_quadrature_on_backend_cuda_gives_the_cpu_map(tmp_path):
