@@ -14,7 +14,7 @@ import numpy as np
 
 from .ball import Ball
 from .classify.observer import N_OBS
-from .compose import BESIDE, OBSERVER, in_line, phases_text
+from .compose import BESIDE, CUDA_METHODS, OBSERVER, in_line, phases_text
 from .integrate import ensemble, naive
 from .integrate.tableaus import FIXED_STEP
 from .physics.fast import fast_state
@@ -504,7 +504,7 @@ def run_headline(n: int = 100, T: float = 20.0, method: str = "dop853", dt: floa
     if baseline == "":
         baseline = HEADLINE_BASELINE.get(method)
     # the baseline runs where it can: dop853 only on the CPU
-    base_backend = backend if baseline in FIXED_STEP or baseline == "quadrature" else "cpu"
+    base_backend = backend if baseline in CUDA_METHODS else "cpu"
     maps = {}
     with tempfile.TemporaryDirectory() as tmp:
         target = Path(out_file) if out_file else Path(tmp) / "headline.nc"

@@ -70,6 +70,8 @@ QUADRATURE = "quadrature"
 QUADRATURE_FALLBACK = "dop853"
 #: methods for a map (`run_launches`): those, the adaptive pairs on SIMD lanes, and quadrature
 MAP_METHODS = METHODS + tuple(LANE_ADAPTIVE) + (QUADRATURE,)
+#: the methods a map can run on the GPU (backend "cuda")
+CUDA_METHODS = tuple(FIXED_STEP) + (QUADRATURE,)
 FALLBACK_RTOL = 1e-10
 FALLBACK_ATOL = 1e-12
 FALLBACK_H_INIT = 1e-3  #: the fixed-frame re-run's first trial step (non-dimensional)

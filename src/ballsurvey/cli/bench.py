@@ -71,9 +71,9 @@ def run(args):
 
         method = args.method or ("rk4" if args.backend == "cuda" else "dop853")
         if args.backend == "cuda":
-            from ..integrate.tableaus import FIXED_STEP
+            from ..compose import CUDA_METHODS
 
-            if method not in FIXED_STEP and method != "quadrature":
+            if method not in CUDA_METHODS:
                 raise InputError(f"--headline --backend cuda runs rk4 or quadrature, not {method}")
             _check_cuda()
         run_headline(n=args.headline, T=args.T, method=method, backend=args.backend)

@@ -28,7 +28,7 @@ from .. import limits
 from ..axes import BALL_AXES, LAUNCH_AXES
 from ..ball import PRESETS, Ball, tilt_error
 from ..classify.labels import Thresholds
-from ..compose import MAP_METHODS
+from ..compose import CUDA_METHODS, MAP_METHODS
 from ..integrate.tableaus import FIXED_STEP
 from ..limits import InputError
 from ..schema import DEFAULT_VARIABLES, RESULT_VARIABLES
@@ -415,7 +415,7 @@ def load_spec(path, *, text: str | None = None, run: dict | None = None) -> Spec
     backend = run.get("backend", RUN_OVERRIDE_DEFAULTS["backend"])
     if backend not in BACKENDS:
         _err(src, "[run] backend", f"must be one of {', '.join(BACKENDS)}, got {backend!r}")
-    if backend == "cuda" and method not in (*FIXED_STEP, "quadrature"):
+    if backend == "cuda" and method not in CUDA_METHODS:
         _err(src, "[run] backend", f"cuda runs the fixed-step methods ({', '.join(FIXED_STEP)}) "
              f"and quadrature; {method} runs on the cpu")
     block = _number(src, "[run] block", run.get("block", 64), integer=True, lo=1,
