@@ -27,6 +27,12 @@ DEFAULT_LIMIT = 20
 SLAB_LAUNCHES = 1 << 22
 
 
+def _best_first(n_error, closure) -> np.ndarray:
+    """The order best first: by |n_sides - N|, then by closure (unknown last); a stable sort, so
+    ties keep their order."""
+    return np.lexsort((np.nan_to_num(closure, nan=np.inf), np.nan_to_num(n_error, nan=np.inf)))
+
+
 def _needs(ds, name: str, asked: bool, what: str) -> None:
     """A question that needs a variable the map does not hold is refused (it matched nothing)."""
     if asked and name not in ds:
@@ -92,8 +98,7 @@ def query_frame(ds: xr.Dataset, shape: str | None = None, n_sides: int | None = 
         if max_closure is not None:
             mask &= closure <= max_closure
     idx = np.flatnonzero(mask)
-    key = np.lexsort((np.nan_to_num(closure[idx], nan=np.inf), np.nan_to_num(err[idx], nan=np.inf)))
-    idx = idx[key] if target is not None else idx
+    idx = idx[_best_first(err[idx], closure[idx])] if target is not None else idx
     th_max = flat.theta_max_deg.values if "theta_max_deg" in flat else np.full(label.shape, np.nan)
     conds = [c for c in ("name", "theta0_deg", "thetadot0", "chidot0", "phidot0", "chi0_deg",
                          "c", "cut_height", "M", "A", "B") if c in flat.coords]
@@ -208,35 +213,24 @@ def query(ds: xr.Dataset, shape: str | None = None, n_sides: int | None = None,
     if limit is not None:
         limit = limits.number("limit", limit, integer=True, lo=1)
     parts, matched, ranked, units = [], 0, False, None
-    first: dict = {}  # per condition column: its one value over every match so far, or None
+    seen: dict = {}  # per condition column: its distinct values over the matches (two at most)
     for part in slabs(ds):
         d = query_frame(part, shape, n_sides, max_n_error, max_closure)
         matched += len(d)
         ranked, units = d.attrs["ranked"], d.attrs["units"]
-        for c in d.columns:
-            if c not in CONDITION_UNITS or not len(d) or first.get(c, 0) is None:
-                continue
-            values = pd.unique(d[c])
-            if len(values) > 1 or (c in first and not _same(first[c], values[0])):
-                first[c] = None
-            else:
-                first[c] = values[0]
+        for c in d.columns if len(d) else ():
+            if c in CONDITION_UNITS:
+                new = pd.unique(d[c])
+                seen[c] = pd.unique(np.concatenate([seen[c], new]) if c in seen else new)[:2]
         parts.append(d.head(limit) if limit is not None else d)
     df = pd.concat(parts, ignore_index=True) if len(parts) > 1 else parts[0]
     if ranked and len(parts) > 1:
-        inf = np.inf
-        key = np.lexsort((np.nan_to_num(df.closure_m.to_numpy(float), nan=inf),
-                          np.nan_to_num(df.n_sides_error.to_numpy(float), nan=inf)))
+        key = _best_first(df.n_sides_error.to_numpy(float), df.closure_m.to_numpy(float))
         df = df.iloc[key].reset_index(drop=True)
     if limit is not None:
         df = df.head(limit)
     # columns said once are those common to every match, not to the rows kept: a script's
     # columns do not change with --limit
     df.attrs = {"units": units, "ranked": ranked, "matched": matched,
-                "common": [c for c, v in first.items() if v is not None] if matched >= 2 else []}
+                "common": [c for c, v in seen.items() if len(v) == 1] if matched >= 2 else []}
     return df
-
-
-def _same(a, b) -> bool:
-    """Equal, NaN equal to NaN."""
-    return a == b or (isinstance(a, float) and isinstance(b, float) and a != a and b != b)
