@@ -255,7 +255,7 @@ def test_static_page_limits(maps, tmp_path, monkeypatch):
     assert r == {"launches": 20, "paths": False}
     assert "paths are precomputed for slices of at most 5 launches" in \
         (tmp_path / "a.html").read_text()
-    monkeypatch.setattr(explore, "MAX_HTML_LAUNCHES", 10)
+    monkeypatch.setattr(explore.static, "MAX_HTML_LAUNCHES", 10)
     with pytest.raises(api.InputError, match="at most 10"):
         explore.write_html(maps / "grid.nc", tmp_path / "b.html")
     assert not (tmp_path / "b.html").exists()

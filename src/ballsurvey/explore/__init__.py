@@ -25,15 +25,11 @@ The modules, each importing only those above it in this list:
     server     the Bokeh server on 127.0.0.1 and its Host and Origin checks (`--allow-host`)
     static     the static page and its Content-Security-Policy
 
-Every name is also a name of this package. Setting one here (as a test's monkeypatch does) sets it
-in each module that holds it, so `explore.MAX_HTML_STEPS = n` reaches the page writer.
+Every name is also a name of this package, for reading; a limit is changed in the module that
+uses it (`explore.static.MAX_HTML_STEPS`).
 """
 from __future__ import annotations
 
-import sys
-import types
-
-from . import document, launch, server, static, view
 from .document import (
     INSTALL_HINT,
     _h,
@@ -98,20 +94,3 @@ __all__ = [
     "point_axes", "point_columns", "points_entry", "precompute_cycles", "require_bokeh",
     "run_settings", "serve", "value_text", "with_csp", "write_html",
 ]
-
-_MODULES = (launch, view, document, server, static)
-_UNSET = object()
-
-
-class _Package(types.ModuleType):
-    def __setattr__(self, name, value):
-        """Set `name` here and in each module of the package that holds the same object."""
-        old = self.__dict__.get(name, _UNSET)
-        if old is not _UNSET and not isinstance(old, types.ModuleType):
-            for m in _MODULES:
-                if m.__dict__.get(name, _UNSET) is old:
-                    setattr(m, name, value)
-        super().__setattr__(name, value)
-
-
-sys.modules[__name__].__class__ = _Package
