@@ -59,6 +59,9 @@ from ..physics.euler import accelerations, heading_velocity, jellett, kinetic, n
 from . import observer as ob
 
 jit = njit(cache=True, nogil=True, error_model="numpy")  # stamped cache: _jit.py
+#: functions that take arrays, called per launch: inlined in numba's IR, so that passing an
+#: array costs no reference-count update (an atomic instruction) per call
+jit_inline = njit(cache=True, nogil=True, error_model="numpy", inline="always")
 
 #: status codes per launch
 DONE, STEADY, VERTICAL, UNCONVERGED = 0, 1, 2, 3
@@ -77,14 +80,22 @@ QUAD_RTOL, TURN_TOL = 1e-9, 5e-9
 NOISE_FACTOR, NOISE_CAP = 100.0, 1e-6
 #: the vertical less a hair: a tilt whose F is still positive there goes through it
 TILT_LIMIT = 0.5 * math.pi * (1.0 - 1e-13)
-#: first step of the outward search for a turning point, and its largest (rad)
-SEARCH_STEP, SEARCH_STEP_MAX = math.radians(2.0), math.radians(8.0)
+#: first step of the outward search for a turning point, its largest and its least (rad)
+SEARCH_STEP, SEARCH_STEP_MAX, SEARCH_STEP_MIN = math.radians(2.0), math.radians(8.0), 1e-9
+#: a predicted step reaches this far past the extrapolated root, to bracket it in one probe; at
+#: most PREDICT_STEP_MAX (rad)
+PREDICT_OVERSHOOT, PREDICT_STEP_MAX = 1.25, math.radians(30.0)
+#: F within this many of its rounding units (eps times the energy's terms) of 0 is a root
+ROOT_NOISE = 16.0
 #: a launch at rest in theta starts its search this far inside (rad)
 START_OFFSET = 1e-9
 #: per-point scratch columns
-_TH, _TAU, _CHD, _PHD, _THD = range(5)
-N_SCRATCH = 5
-#: per-point rows of the path's scratch (`cycle_one`'s node)
+_TH, _TAU, _CHD, _PHD, _THD, _STH, _CTH = range(7)
+N_SCRATCH = 7
+#: per-point rows of the path's scratch (`cycle_one`'s node): s, dt/ds, chidot dt/ds, u, w dt/ds,
+#: |path heading rate|, speed, friction demand, normal force, chi, x, y, two work rows, w
+(_SS, _TAU_C, _CHD_TAU, _U, _W_TAU, _PSID, _SPEED, _FRIC, _NORM, _CHI, _X, _Y, _FX, _FY,
+ _W) = range(15)
 N_NODE = 15
 
 
@@ -144,12 +155,15 @@ def _F_dF(th, E, J, R, c, A, B):
 
 
 @jit
-def _root(a, b, E, J, R, c, A, B):
-    """The sign change of F between a (F > 0) and b (F <= 0): Newton kept in the bracket by
-    bisection."""
-    x = a
+def _root(a, b, x, f_noise, E, J, R, c, A, B):
+    """The sign change of F between a (F > 0) and b (F <= 0), from x inside: Newton kept in the
+    bracket by bisection, until F is within f_noise (its rounding) of 0 or the step is
+    rounding."""
     for _ in range(200):
         f, df = _F_dF(x, E, J, R, c, A, B)
+        if abs(f) <= f_noise:  # a root to F's own rounding: one Newton step more is the best
+            nx = x - f / df if df != 0.0 else x
+            return nx if min(a, b) <= nx <= max(a, b) else x
         if f > 0.0:
             a = x
         else:
@@ -168,20 +182,39 @@ def _root(a, b, E, J, R, c, A, B):
 
 
 @jit
-def _turning_point(start, d, E, J, R, c, A, B):
+def _turning_point(start, d, ref, q_start, f_noise, E, J, R, c, A, B):
     """The first root of F from start (F > 0 there) in direction d (+-1); NaN where the tilt
-    reaches the vertical."""
-    a, step = start, SEARCH_STEP
+    reaches the vertical.
+
+    The search follows q = F / |theta - ref| when ref is a root of F itself (the launch at a
+    turning point: q has no root there, and is linear in theta where F is a parabola), else q =
+    F (ref NaN); q_start is q at start. Each probe's step is the linear extrapolation of q's last
+    two values to its root, overshot by PREDICT_OVERSHOOT (at most SEARCH_STEP_MAX; doubling
+    from SEARCH_STEP where q does not fall), so a near-parabolic F is bracketed in one or two
+    probes; the root is then solved from q's linear interpolation in the bracket (`_root`)."""
+    deflate = math.isfinite(ref)
+    a, qa, step = start, q_start, SEARCH_STEP
     while True:
         b = a + d * step
         if abs(b) >= TILT_LIMIT:
             b = d * TILT_LIMIT
-            if _F(b, E, J, R, c, A, B) > 0.0:
+            fb = _F(b, E, J, R, c, A, B)
+            if fb > 0.0:
                 return math.nan
-            return _root(a, b, E, J, R, c, A, B)
-        if _F(b, E, J, R, c, A, B) <= 0.0:
-            return _root(a, b, E, J, R, c, A, B)
-        a, step = b, min(2.0 * step, SEARCH_STEP_MAX)
+        else:
+            fb = _F(b, E, J, R, c, A, B)
+        qb = fb / abs(b - ref) if deflate else fb
+        if fb <= 0.0:
+            x = a + (b - a) * (qa / (qa - qb)) if qa - qb > 0.0 else 0.5 * (a + b)
+            if not (min(a, b) < x < max(a, b)):
+                x = 0.5 * (a + b)
+            return _root(a, b, x, f_noise, E, J, R, c, A, B)
+        if qa > qb:  # q falls: its root lies about qb / (qa - qb) steps further on
+            step = min(PREDICT_STEP_MAX, max(SEARCH_STEP_MIN,
+                                             PREDICT_OVERSHOOT * step * qb / (qa - qb)))
+        else:
+            step = min(2.0 * step, SEARCH_STEP_MAX)
+        a, qa = b, qb
 
 
 @jit
@@ -189,53 +222,52 @@ def _end_tau(th, h, E, J, R, c, A, B):
     """dt/ds at a turning point: the limit sqrt(h / |thetaddot|)."""
     sth, cth, chd, phd, _ = _rates(th, E, J, R, c, A, B)
     thdd = accelerations(sth, cth, 0.0, chd, phd, c, A, B)[0]
-    return math.sqrt(h / abs(thdd)), chd, phd
+    return math.sqrt(h / abs(thdd)), chd, phd, sth, cth
 
 
-@jit
-def _extremum(s, f, j, n, sign):
-    """f's extremum near point j of n + 1 (sign +1: largest, -1: least) on the parabola through
-    points j - 1, j, j + 1; at an end point f[j] (f is even about the ends)."""
+@jit_inline
+def _extremum(node, f, n, sign):
+    """Row f of node: its extremum over points 0..n (sign +1: largest, -1: least), refined on
+    the parabola through the best point and its two neighbours (their s in row _SS); at an end
+    point its value there (f is even about the ends)."""
+    j = 0
+    best = sign * node[f, 0]
+    for k in range(1, n + 1):
+        if sign * node[f, k] > best:
+            best, j = sign * node[f, k], k
+    fj = node[f, j]
     if j == 0 or j == n:
-        return f[j]
-    x0, x1, x2 = s[j - 1], s[j], s[j + 1]
-    d01 = (f[j] - f[j - 1]) / (x1 - x0)
-    d12 = (f[j + 1] - f[j]) / (x2 - x1)
+        return fj
+    x0, x1, x2 = node[_SS, j - 1], node[_SS, j], node[_SS, j + 1]
+    d01 = (fj - node[f, j - 1]) / (x1 - x0)
+    d12 = (node[f, j + 1] - fj) / (x2 - x1)
     a = (d12 - d01) / (x2 - x0)
     if sign * a >= 0.0:
-        return f[j]
+        return fj
     xs = 0.5 * (x0 + x1) - d01 / (2.0 * a)
     if not (x0 <= xs <= x2):
-        return f[j]
-    v = f[j - 1] + d01 * (xs - x0) + a * (xs - x0) * (xs - x1)
-    return max(f[j], v) if sign > 0 else min(f[j], v)
+        return fj
+    v = node[f, j - 1] + d01 * (xs - x0) + a * (xs - x0) * (xs - x1)
+    return max(fj, v) if sign > 0 else min(fj, v)
 
 
-@jit
-def _argext(f, n, sign):
-    best, jb = sign * f[0], 0
-    for j in range(1, n + 1):
-        if sign * f[j] > best:
-            best, jb = sign * f[j], j
-    return jb
-
-
-@jit
-def _cumulate(qm, off, n, f, out):
-    """out[j] = integral of f from the first point to point j (the level's matrix, stored by
-    columns, at qm[off:]). Each out[j] sums its terms in the order of k, as a row-by-row product
-    would, but the inner loop runs over j: independent sums, which vectorise."""
+@jit_inline
+def _cumulate(qm, off, n, node, f, out):
+    """Row out of node: at each point j, the integral of row f from the first point to point j
+    (the level's matrix, stored by columns, at qm[off:]). Each sum runs in the order of k, as a
+    row-by-row product would, but the inner loop runs over j: independent sums, which
+    vectorise."""
     m = n + 1
     for j in range(m):
-        out[j] = 0.0
+        node[out, j] = 0.0
     for k in range(m):
-        fk = f[k]
+        fk = node[f, k]
         col = off + k * m
         for j in range(m):
-            out[j] += qm[col + j] * fk
+            node[out, j] += qm[col + j] * fk
 
 
-@jit
+@jit_inline
 def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, sin_s, cos_s,
               weights, qm, offsets, scr, node, obs, i):
     """Launch i (non-dimensional tilt, rates) -> its observer slots obs[:, i]; returns a status.
@@ -250,21 +282,24 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
     thdd0 = accelerations(s0, c0, thd0, chd0, phd0, c, A, B)[0]
     if abs(thd0) < steady_tol and abs(thdd0) < steady_tol:
         return STEADY
+    f_noise = ROOT_NOISE * 2.2e-16 * scale
     # --- turning points ----------------------------------------------------------------------
     if thd0 == 0.0:
         d = 1.0 if thdd0 > 0.0 else -1.0
         start = th0 + d * START_OFFSET
         if not _F(start, E, J, R, c, A, B) > 0.0:
             return UNCONVERGED
-        other = _turning_point(start, d, E, J, R, c, A, B)
+        # F vanishes at th0 with slope 2 thdd0: q = F / |theta - th0| starts at 2 |thdd0|
+        other = _turning_point(start, d, th0, 2.0 * abs(thdd0), f_noise, E, J, R, c, A, B)
         if not math.isfinite(other):
             return VERTICAL
         lo, hi = (th0, other) if d > 0.0 else (other, th0)
     else:
-        if not _F(th0, E, J, R, c, A, B) > 0.0:
+        f0 = _F(th0, E, J, R, c, A, B)
+        if not f0 > 0.0:
             return UNCONVERGED
-        lo = _turning_point(th0, -1.0, E, J, R, c, A, B)
-        hi = _turning_point(th0, 1.0, E, J, R, c, A, B)
+        lo = _turning_point(th0, -1.0, math.nan, f0, f_noise, E, J, R, c, A, B)
+        hi = _turning_point(th0, 1.0, math.nan, f0, f_noise, E, J, R, c, A, B)
         if not (math.isfinite(lo) and math.isfinite(hi)):
             return VERTICAL
     m, h = 0.5 * (hi + lo), 0.5 * (hi - lo)
@@ -283,17 +318,18 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
             k = j * stride
             if k == 0 or k == MAX_N:
                 th = lo if k == 0 else hi
-                tau, chd, phd = _end_tau(th, h, E, J, R, c, A, B)
+                tau, chd, phd, sth, cth = _end_tau(th, h, E, J, R, c, A, B)
                 thd = 0.0
             else:
                 th = m + h * sin_s[k]
-                _, _, chd, phd, f = _rates(th, E, J, R, c, A, B)
+                sth, cth, chd, phd, f = _rates(th, E, J, R, c, A, B)
                 if not f > 0.0:
                     return UNCONVERGED
                 thd = math.sqrt(f)
                 tau = h * cos_s[k] / thd
             scr[_TH, k], scr[_TAU, k], scr[_CHD, k] = th, tau, chd
             scr[_PHD, k], scr[_THD, k] = phd, thd
+            scr[_STH, k], scr[_CTH, k] = sth, cth
         if L == 0:  # F halfway against the energy's terms: the rounding floor
             noise = 2.2e-16 * scale / scr[_THD, MAX_N // 2] ** 2
             tol_p = max(QUAD_RTOL, min(NOISE_CAP, NOISE_FACTOR * noise))
@@ -317,14 +353,11 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
     level -= 1
     n = FIRST_N << level
     stride = MAX_N // n
-    ss, tau_c, chd_tau, u_a, w_tau, psid_a, speed_a, fric_a, norm_a = (
-        node[0], node[1], node[2], node[3], node[4], node[5], node[6], node[7], node[8])
-    chi_a, x_a, y_a, fx, fy, w_a = node[9], node[10], node[11], node[12], node[13], node[14]
     for j in range(n + 1):
         k = j * stride
         th, tau, chd = scr[_TH, k], scr[_TAU, k], scr[_CHD, k]
         phd, thd = scr[_PHD, k], scr[_THD, k]
-        sth, cth = math.sin(th), math.cos(th)
+        sth, cth = scr[_STH, k], scr[_CTH, k]
         thdd, chdd, phdd = accelerations(sth, cth, thd, chd, phd, c, A, B)
         u, w = heading_velocity(sth, cth, thd, chd, phd, c)
         v2 = u * u + w * w
@@ -336,41 +369,41 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
         normal = normal_force(sth, cth, thd, thdd, c)
         fric = (math.sqrt(ah_par * ah_par + ah_perp * ah_perp) / normal if normal > 0.0
                 else math.inf)
-        ss[j] = s_all[k]
-        tau_c[j] = tau
-        chd_tau[j] = chd * tau
-        u_a[j] = u
-        w_tau[j] = a1 * h * cos_s[k]  # w dt/ds = a' dtheta/ds on the rising half
-        w_a[j] = w
-        psid_a[j] = abs(psid)
-        speed_a[j] = math.sqrt(v2)
-        fric_a[j] = fric
-        norm_a[j] = normal
+        node[_SS, j] = s_all[k]
+        node[_TAU_C, j] = tau
+        node[_CHD_TAU, j] = chd * tau
+        node[_U, j] = u
+        node[_W_TAU, j] = a1 * h * cos_s[k]  # w dt/ds = a' dtheta/ds on the rising half
+        node[_W, j] = w
+        node[_PSID, j] = abs(psid)
+        node[_SPEED, j] = math.sqrt(v2)
+        node[_FRIC, j] = fric
+        node[_NORM, j] = normal
     off = offsets[level]
-    _cumulate(qm, off, n, chd_tau, chi_a)
+    _cumulate(qm, off, n, node, _CHD_TAU, _CHI)
     for j in range(n + 1):
-        cc, sc = math.cos(chi_a[j]), math.sin(chi_a[j])
-        fx[j] = u_a[j] * cc * tau_c[j] - w_tau[j] * sc
-        fy[j] = u_a[j] * sc * tau_c[j] + w_tau[j] * cc
-    _cumulate(qm, off, n, fx, x_a)
-    _cumulate(qm, off, n, fy, y_a)
+        cc, sc = math.cos(node[_CHI, j]), math.sin(node[_CHI, j])
+        node[_FX, j] = node[_U, j] * cc * node[_TAU_C, j] - node[_W_TAU, j] * sc
+        node[_FY, j] = node[_U, j] * sc * node[_TAU_C, j] + node[_W_TAU, j] * cc
+    _cumulate(qm, off, n, node, _FX, _X)
+    _cumulate(qm, off, n, node, _FY, _Y)
     period, dchi = 2.0 * per_fine, 2.0 * turn_fine
     v_int = 0.0
     for j in range(n + 1):
-        v_int += weights[level, j * stride] * tau_c[j] * speed_a[j]
+        v_int += weights[level, j * stride] * node[_TAU_C, j] * node[_SPEED, j]
     # the path heading's total absolute change over the half cycle: its variation over the
     # points, psi = chi + the velocity's direction in the heading frame (exact where psi is
     # monotone between points; a quadrature of |psidot| would miss the spikes at a cusp)
     t_turn = 0.0
-    psi_prev = chi_a[0] + math.atan2(w_a[0], u_a[0])
+    psi_prev = node[_CHI, 0] + math.atan2(node[_W, 0], node[_U, 0])
     for j in range(1, n + 1):
-        psi = chi_a[j] + math.atan2(w_a[j], u_a[j])
+        psi = node[_CHI, j] + math.atan2(node[_W, j], node[_U, j])
         dpsi = psi - psi_prev
         t_turn += abs(dpsi - 2.0 * math.pi * math.floor((dpsi + math.pi) / (2.0 * math.pi)))
         psi_prev = psi
     # --- the orbit: G at theta_max, the next minimum (the mirror of the first), the centre -----
-    xm, ym = x_a[n], y_a[n]
-    ex, ey = math.cos(chi_a[n]), math.sin(chi_a[n])
+    xm, ym = node[_X, n], node[_Y, n]
+    ex, ey = math.cos(node[_CHI, n]), math.sin(node[_CHI, n])
     along = xm * ex + ym * ey
     bx, by = 2.0 * along * ex, 2.0 * along * ey  # G at the next minimum (G at the first: 0)
     cd, sd = math.cos(dchi), math.sin(dchi)
@@ -381,26 +414,26 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
     else:
         rcx = rcy = math.nan
     for j in range(n + 1):
-        fx[j] = math.sqrt((x_a[j] - rcx) ** 2 + (y_a[j] - rcy) ** 2)
-    r_min = _extremum(ss, fx, _argext(fx, n, -1.0), n, -1.0)
-    r_max = _extremum(ss, fx, _argext(fx, n, 1.0), n, 1.0)
+        node[_FX, j] = math.sqrt((node[_X, j] - rcx) ** 2 + (node[_Y, j] - rcy) ** 2)
+    r_min = _extremum(node, _FX, n, -1.0)
+    r_max = _extremum(node, _FX, n, 1.0)
     # --- theta maxima within T (period mode: at most stop_after) -----------------------------
     if thd0 == 0.0:
         t1 = period if th0 == hi else 0.5 * period
     else:
         # time from theta_min up to the launch: the cumulative time interpolated at the
         # launch's s (barycentric, Chebyshev-Lobatto)
-        _cumulate(qm, off, n, tau_c, fy)
+        _cumulate(qm, off, n, node, _TAU_C, _FY)
         s_l = math.asin(max(-1.0, min(1.0, (th0 - m) / h)))
         num = den = 0.0
         t_l = math.nan
         for j in range(n + 1):
-            dx = s_l - ss[j]
+            dx = s_l - node[_SS, j]
             wb = (-1.0 if j % 2 else 1.0) * (0.5 if j == 0 or j == n else 1.0)
             if dx == 0.0:
-                t_l = fy[j]
+                t_l = node[_FY, j]
                 break
-            num += wb / dx * fy[j]
+            num += wb / dx * node[_FY, j]
             den += wb / dx
         if not math.isfinite(t_l):
             t_l = num / den
@@ -417,8 +450,8 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
     obs[ob.O_TH_MIN, i], obs[ob.O_TH_MAX, i] = lo, hi
     obs[ob.O_E0, i], obs[ob.O_J0, i], obs[ob.O_R0, i] = E + 1.0, J, R
     obs[ob.O_DE, i] = obs[ob.O_DJ, i] = obs[ob.O_DR, i] = 0.0
-    obs[ob.O_FRIC, i] = _extremum(ss, fric_a, _argext(fric_a, n, 1.0), n, 1.0)
-    obs[ob.O_NMIN, i] = _extremum(ss, norm_a, _argext(norm_a, n, -1.0), n, -1.0)
+    obs[ob.O_FRIC, i] = _extremum(node, _FRIC, n, 1.0)
+    obs[ob.O_NMIN, i] = _extremum(node, _NORM, n, -1.0)
     obs[ob.O_NMAX, i] = n_max
     obs[ob.O_T1, i], obs[ob.O_CHI1, i] = t1, 0.0
     obs[ob.O_TL, i] = t1 + n_cyc * period
@@ -427,13 +460,13 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
     obs[ob.O_XP, i], obs[ob.O_YP, i] = xm, ym
     obs[ob.O_XL, i] = rcx + cd * (xm - rcx) - sd * (ym - rcy)
     obs[ob.O_YL, i] = rcy + sd * (xm - rcx) + cd * (ym - rcy)
-    obs[ob.O_C_PSID, i] = _extremum(ss, psid_a, _argext(psid_a, n, 1.0), n, 1.0)
+    obs[ob.O_C_PSID, i] = _extremum(node, _PSID, n, 1.0)
     obs[ob.O_C_TURN, i] = 2.0 * t_turn
-    obs[ob.O_C_VMIN, i] = _extremum(ss, speed_a, _argext(speed_a, n, -1.0), n, -1.0)
+    obs[ob.O_C_VMIN, i] = _extremum(node, _SPEED, n, -1.0)
     obs[ob.O_C_VMEAN, i] = 2.0 * v_int / period
     # the velocity's winding relative to the heading: it stays in the half-plane of thetadot's
     # sign over each half cycle, so the forward speeds at the turning points decide it
-    u_lo, u_hi = u_a[0], u_a[n]
+    u_lo, u_hi = node[_U, 0], node[_U, n]
     wind = -1.0 if u_lo < 0.0 < u_hi else (1.0 if u_hi < 0.0 < u_lo else 0.0)
     obs[ob.O_C_WIND, i] = wind
     obs[ob.O_C_DUR, i] = period
