@@ -90,13 +90,19 @@ ROOT_NOISE = 16.0
 #: a launch at rest in theta starts its search this far inside (rad)
 START_OFFSET = 1e-9
 #: per-point scratch columns
-_TH, _TAU, _CHD, _PHD, _THD, _STH, _CTH = range(7)
-N_SCRATCH = 7
+_TAU, _CHD, _PHD, _THD, _STH, _CTH = range(6)
+N_SCRATCH = 6
 #: per-point rows of the path's scratch (`cycle_one`'s node): s, dt/ds, chidot dt/ds, u, w dt/ds,
 #: |path heading rate|, speed, friction demand, normal force, chi, x, y, two work rows, w
 (_SS, _TAU_C, _CHD_TAU, _U, _W_TAU, _PSID, _SPEED, _FRIC, _NORM, _CHI, _X, _Y, _FX, _FY,
  _W) = range(15)
 N_NODE = 15
+#: the path's inputs per point (chidot, phidot, thetadot, sin and cos theta), in rows that are
+#: free until the cumulative integrals
+_IN_CHD, _IN_PHD, _IN_THD, _IN_STH, _IN_CTH = _CHI, _X, _Y, _FX, _FY
+#: node's rows as the level stage's work rows: sin, cos, h cos s, chidot, phidot, F, thetadot,
+#: dt/ds of the level's new points
+_WS, _WC, _WH, _WCHD, _WPHD, _WF, _WTHD, _WTAU = range(8)
 
 
 @cache
@@ -125,10 +131,10 @@ def tables():
 
 
 @jit
-def _rates(th, E, J, R, c, A, B):
-    """(sin, cos, chidot, phidot, F = thetadot^2) at tilt th from the invariants (E: the energy
-    less M g a)."""
-    sth, cth = math.sin(th), math.cos(th)
+def _rates_at(sth, cth, E, J, R, c, A, B):
+    """(chidot, phidot, F = thetadot^2) at the tilt whose sine and cosine are sth, cth, from the
+    invariants (E: the energy less M g a). Free of calls: the level and path loops evaluate it
+    for many points at once (SIMD lanes)."""
     w = R / math.sqrt(A * B + A * cth * cth + B * (sth - c) ** 2)
     chc = (B * w * (sth - c) - J) / (A * cth)  # chidot cos(theta): bounded at the vertical
     chd = chc / cth
@@ -137,7 +143,15 @@ def _rates(th, E, J, R, c, A, B):
     # not from phidot - chidot sin(theta), which loses |chidot| ulps near the vertical
     fwd = w * cth + chc * (sth - c)  # (phidot - c chidot) cos(theta)
     u = 0.5 * (A * chc * chc + B * w * w + fwd * fwd) - c * sth
-    return sth, cth, chd, phd, 2.0 * (E - u) / (A + 1.0 - 2.0 * c * sth + c * c)
+    return chd, phd, 2.0 * (E - u) / (A + 1.0 - 2.0 * c * sth + c * c)
+
+
+@jit
+def _rates(th, E, J, R, c, A, B):
+    """(sin, cos, chidot, phidot, F = thetadot^2) at tilt th (`_rates_at`)."""
+    sth, cth = math.sin(th), math.cos(th)
+    chd, phd, f = _rates_at(sth, cth, E, J, R, c, A, B)
+    return sth, cth, chd, phd, f
 
 
 @jit
@@ -312,24 +326,34 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
     for L in range(LEVELS):
         n = FIRST_N << L
         stride = MAX_N // n
-        for j in range(n + 1):
-            if L > 0 and j % 2 == 0:
-                continue  # computed at the last level
-            k = j * stride
-            if k == 0 or k == MAX_N:
+        if L == 0:  # the ends: the turning points, where dt/ds is its limit
+            for k in (0, MAX_N):
                 th = lo if k == 0 else hi
                 tau, chd, phd, sth, cth = _end_tau(th, h, E, J, R, c, A, B)
-                thd = 0.0
-            else:
-                th = m + h * sin_s[k]
-                sth, cth, chd, phd, f = _rates(th, E, J, R, c, A, B)
-                if not f > 0.0:
-                    return UNCONVERGED
-                thd = math.sqrt(f)
-                tau = h * cos_s[k] / thd
-            scr[_TH, k], scr[_TAU, k], scr[_CHD, k] = th, tau, chd
-            scr[_PHD, k], scr[_THD, k] = phd, thd
-            scr[_STH, k], scr[_CTH, k] = sth, cth
+                scr[_TAU, k], scr[_CHD, k], scr[_PHD, k] = tau, chd, phd
+                scr[_THD, k], scr[_STH, k], scr[_CTH, k] = 0.0, sth, cth
+            first, step, count = stride, stride, n - 1
+        else:  # the points between the last level's
+            first, step, count = stride, 2 * stride, n // 2
+        # the new interior points: their sines and cosines, then their rates in a loop free of
+        # calls (SIMD lanes), in node's rows; F must be positive at each
+        for p in range(count):
+            k = first + p * step
+            th = m + h * sin_s[k]
+            node[_WS, p], node[_WC, p] = math.sin(th), math.cos(th)
+            node[_WH, p] = h * cos_s[k]
+        for p in range(count):
+            chd, phd, f = _rates_at(node[_WS, p], node[_WC, p], E, J, R, c, A, B)
+            thd = math.sqrt(f)
+            node[_WCHD, p], node[_WPHD, p], node[_WF, p] = chd, phd, f
+            node[_WTHD, p], node[_WTAU, p] = thd, node[_WH, p] / thd
+        for p in range(count):
+            if not node[_WF, p] > 0.0:
+                return UNCONVERGED
+            k = first + p * step
+            scr[_TAU, k], scr[_CHD, k] = node[_WTAU, p], node[_WCHD, p]
+            scr[_PHD, k], scr[_THD, k] = node[_WPHD, p], node[_WTHD, p]
+            scr[_STH, k], scr[_CTH, k] = node[_WS, p], node[_WC, p]
         if L == 0:  # F halfway against the energy's terms: the rounding floor
             noise = 2.2e-16 * scale / scr[_THD, MAX_N // 2] ** 2
             tol_p = max(QUAD_RTOL, min(NOISE_CAP, NOISE_FACTOR * noise))
@@ -353,11 +377,15 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
     level -= 1
     n = FIRST_N << level
     stride = MAX_N // n
-    for j in range(n + 1):
+    for j in range(n + 1):  # the level's points, gathered into rows for a loop free of calls
         k = j * stride
-        th, tau, chd = scr[_TH, k], scr[_TAU, k], scr[_CHD, k]
-        phd, thd = scr[_PHD, k], scr[_THD, k]
-        sth, cth = scr[_STH, k], scr[_CTH, k]
+        node[_SS, j], node[_TAU_C, j], node[_W_TAU, j] = s_all[k], scr[_TAU, k], cos_s[k]
+        node[_IN_CHD, j], node[_IN_PHD, j], node[_IN_THD, j] = scr[_CHD, k], scr[_PHD, k], \
+            scr[_THD, k]
+        node[_IN_STH, j], node[_IN_CTH, j] = scr[_STH, k], scr[_CTH, k]
+    for j in range(n + 1):  # SIMD lanes
+        tau, chd, phd = node[_TAU_C, j], node[_IN_CHD, j], node[_IN_PHD, j]
+        thd, sth, cth = node[_IN_THD, j], node[_IN_STH, j], node[_IN_CTH, j]
         thdd, chdd, phdd = accelerations(sth, cth, thd, chd, phd, c, A, B)
         u, w = heading_velocity(sth, cth, thd, chd, phd, c)
         v2 = u * u + w * w
@@ -369,11 +397,9 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
         normal = normal_force(sth, cth, thd, thdd, c)
         fric = (math.sqrt(ah_par * ah_par + ah_perp * ah_perp) / normal if normal > 0.0
                 else math.inf)
-        node[_SS, j] = s_all[k]
-        node[_TAU_C, j] = tau
         node[_CHD_TAU, j] = chd * tau
         node[_U, j] = u
-        node[_W_TAU, j] = a1 * h * cos_s[k]  # w dt/ds = a' dtheta/ds on the rising half
+        node[_W_TAU, j] = a1 * h * node[_W_TAU, j]  # w dt/ds = a' dtheta/ds on the rising half
         node[_W, j] = w
         node[_PSID, j] = abs(psid)
         node[_SPEED, j] = math.sqrt(v2)
