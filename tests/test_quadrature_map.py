@@ -169,6 +169,54 @@ def test_a_steady_launch_goes_to_the_integrator():
     assert q["formulation"][0] == FIXED_FRAME and LABELS[q["label"][0]] == "circle"
 
 
+def test_turning_points_of_small_oscillations_against_brentq():
+    """Launches near a steady circle (at rest in theta a little off it, or on it with a small
+    tilt rate): oscillations of thousandths to tenths of a degree, where the turning-point
+    search starts far wider than the range and F is a small difference. Each end of those the
+    kernel does (the rest go to the integrator) against scipy's brentq on the numpy module's own
+    F, bracketed by a scan in steps of 1e-4 deg."""
+    from scipy.optimize import brentq
+
+    from ballsurvey.physics.euler import accelerations, energy, jellett, routh
+    from ballsurvey.physics.steady import spin_for_circle
+
+    c, A, B = P
+    cases = []
+    for th_c in (5.0, 25.0, 45.0):
+        for om in (2.0, -3.0):
+            w = spin_for_circle(math.radians(th_c), om, c, A, B)
+            for dth, td in ((0.3, 0.0), (0.05, 0.0), (0.0, 0.05), (0.0, 0.01)):
+                cases.append((math.radians(th_c + dth), td * TU, om, w))
+    th, td, cd, pd = np.array(cases).T
+    y0 = launch_state(np.degrees(th), td / TU, cd / TU, pd / TU, TU)
+    params = np.repeat(P[:, None], len(th), 1)
+    obs, status = cycle.cycles_by_quadrature(y0, params, 20 / TU, stop_after=3)
+    ranges = []
+    for i, (t0, d0, om, w) in enumerate(cases):
+        if status[i] != cycle.DONE:
+            continue
+        args = (math.sin(t0), math.cos(t0), d0, om, w, c, A, B)
+        E, J, R = energy(*args), jellett(*args), routh(*args)
+
+        def f(x, E=E, R=R, J=J):
+            return float(qmod._F(np.array(x), E, R, J, c, A, B)[0])
+
+        ends = []
+        for d in (-1.0, 1.0):
+            if d0 == 0.0 and d * accelerations(*args)[0] < 0.0:
+                ends.append(t0)  # the launch is this turning point
+                continue
+            a = t0 + d * 1e-9 if d0 == 0.0 else t0
+            while f(a + d * math.radians(1e-4)) > 0.0:
+                a += d * math.radians(1e-4)
+            ends.append(brentq(f, a, a + d * math.radians(1e-4), xtol=1e-15, rtol=1e-15))
+        assert abs(obs[ob.O_TH_MIN, i] - ends[0]) < 1e-9, i
+        assert abs(obs[ob.O_TH_MAX, i] - ends[1]) < 1e-9, i
+        ranges.append(math.degrees(ends[1] - ends[0]))
+    assert len(ranges) >= len(cases) // 2
+    assert min(ranges) < 0.005 and max(ranges) > 0.1
+
+
 def test_results_do_not_depend_on_block_or_threads():
     th, td, cd, pd = LAUNCHES.T
     y0 = launch_state(th, td, cd, pd, TU)

@@ -9,10 +9,12 @@ extrema: the path is mirror-symmetric about the line through G at a theta extrem
 heading there).
 
 Turning points. From the launch (a turning point itself when thetadot0 = 0: the sign of
-thetaddot0 says which), F is followed outward in steps of 2, 4, then 8 deg until it changes sign
-(a tilt that reaches the vertical, +-90 deg less 1e-13, is left to the integrator), and the root
-is solved by Newton's method on F with its exact derivative F' = 2 thetaddot(theta, thetadot =
-sqrt F), kept inside the bracket by bisection, to rounding.
+thetaddot0 says which), F is followed outward until it changes sign (a tilt that reaches the
+vertical, +-90 deg less 1e-13, is left to the integrator): each probe steps to the extrapolated
+root of q = F / |theta - theta0| (launch at a turning point: no root there, linear where F is a
+parabola) or of q = F (`_turning_point`), and the root is solved by Newton's method on F with its
+exact derivative F' = 2 thetaddot(theta, thetadot = sqrt F), from q's interpolated root, kept
+inside the bracket by bisection, until F is at its rounding.
 
 Quadrature. With theta = m + h sin s (m, h: the middle and half-range), s in [-pi/2, pi/2] runs the
 rising half cycle, dt/ds = h cos s / sqrt(F) is smooth (its value at the ends, sqrt(h /
@@ -22,10 +24,13 @@ cluster at the turning points, where the tilt's approach to the vertical makes t
 sharp feature), N = 16, 32, ..., 512, nested (each level reuses the last's points) until the period
 and the turn of two successive levels agree to `QUAD_RTOL` and `TURN_TOL` (relative; absolute in
 rad for a turn under 1 rad; no tighter than F's own rounding allows: `NOISE_FACTOR`); not converged
-at 512: left to the integrator. The period and turn are the last level's; the path is taken at the
-level before (its period and turn agree with the last's to those tolerances): there the cumulative
-integrals (Chebyshev integration matrix) give, at every point, the time, the heading chi (from
-chidot) and G's position (from its velocity, in the heading frame turned by chi).
+at 512: left to the integrator. Each level's new points take their sines and cosines first, then
+their rates in a loop free of calls, which runs in SIMD lanes (as does the path's per-point
+algebra); the numbers are those of one point at a time. The period and turn are the last
+level's; the path is taken at the level before (its period and turn agree with the last's to
+those tolerances): there the cumulative integrals (Chebyshev integration matrix) give, at every
+point, the time, the heading chi (from chidot) and G's position (from its velocity, in the heading
+frame turned by chi).
 
 From them, per launch, the observer's slots (`observer.SLOTS`) are filled as the stepping observer
 would fill them after the same number of theta maxima, so the one labeller (`labels.label_fields`)
