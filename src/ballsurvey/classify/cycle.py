@@ -58,6 +58,7 @@ from functools import cache
 
 import numba as nb
 import numpy as np
+from numba import uintp
 
 from .._jit import njit
 from ..physics.euler import accelerations, heading_velocity, jellett, kinetic, normal_force, routh
@@ -248,25 +249,26 @@ def _end_tau(th, h, E, J, R, c, A, B):
 def _extremum(node, f, n, sign):
     """Row f of node: its extremum over points 0..n (sign +1: largest, -1: least), refined on
     the parabola through the best point and its two neighbours (their s in row _SS); at an end
-    point its value there (f is even about the ends)."""
-    j = 0
-    best = sign * node[f, 0]
-    for k in range(1, n + 1):
-        if sign * node[f, k] > best:
-            best, j = sign * node[f, k], k
-    fj = node[f, j]
-    if j == 0 or j == n:
+    point its value there (f is even about the ends). Unsigned indices (`_cumulate`)."""
+    fr, un, one = uintp(f), uintp(n), uintp(1)
+    j = uintp(0)
+    best = sign * node[fr, 0]
+    for k in range(one, un + one):
+        if sign * node[fr, k] > best:
+            best, j = sign * node[fr, k], k
+    fj = node[fr, j]
+    if j == 0 or j == un:
         return fj
-    x0, x1, x2 = node[_SS, j - 1], node[_SS, j], node[_SS, j + 1]
-    d01 = (fj - node[f, j - 1]) / (x1 - x0)
-    d12 = (node[f, j + 1] - fj) / (x2 - x1)
+    x0, x1, x2 = node[_SS, j - one], node[_SS, j], node[_SS, j + one]
+    d01 = (fj - node[fr, j - one]) / (x1 - x0)
+    d12 = (node[fr, j + one] - fj) / (x2 - x1)
     a = (d12 - d01) / (x2 - x0)
     if sign * a >= 0.0:
         return fj
     xs = 0.5 * (x0 + x1) - d01 / (2.0 * a)
     if not (x0 <= xs <= x2):
         return fj
-    v = node[f, j - 1] + d01 * (xs - x0) + a * (xs - x0) * (xs - x1)
+    v = node[fr, j - one] + d01 * (xs - x0) + a * (xs - x0) * (xs - x1)
     return max(fj, v) if sign > 0 else min(fj, v)
 
 
@@ -275,15 +277,16 @@ def _cumulate(qm, off, n, node, f, out):
     """Row out of node: at each point j, the integral of row f from the first point to point j
     (the level's matrix, stored by columns, at qm[off:]). Each sum runs in the order of k, as a
     row-by-row product would, but the inner loop runs over j: independent sums, which
-    vectorise."""
-    m = n + 1
+    vectorise. The indices are unsigned (`uintp`): numba adds no negative-index wraparound to
+    them, which would keep the loop from vectorising."""
+    m, o, fr = uintp(n + 1), uintp(out), uintp(f)
     for j in range(m):
-        node[out, j] = 0.0
+        node[o, j] = 0.0
     for k in range(m):
-        fk = node[f, k]
-        col = off + k * m
+        fk = node[fr, k]
+        col = uintp(off) + k * m
         for j in range(m):
-            node[out, j] += qm[col + j] * fk
+            node[o, j] += qm[col + j] * fk
 
 
 @jit_inline
@@ -341,18 +344,21 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
         else:  # the points between the last level's
             first, step, count = stride, 2 * stride, n // 2
         # the new interior points: their sines and cosines, then their rates in a loop free of
-        # calls (SIMD lanes), in node's rows; F must be positive at each
-        for p in range(count):
+        # calls (SIMD lanes), in node's rows; F must be positive at each. (Indices unsigned
+        # here and below, `uintp`: numba adds no negative-index wraparound to them, which would
+        # turn the loops' loads into gathers or keep them from vectorising.)
+        first, step = uintp(first), uintp(step)
+        for p in range(uintp(count)):
             k = first + p * step
             th = m + h * sin_s[k]
             node[_WS, p], node[_WC, p] = math.sin(th), math.cos(th)
             node[_WH, p] = h * cos_s[k]
-        for p in range(count):
+        for p in range(uintp(count)):
             chd, phd, f = _rates_at(node[_WS, p], node[_WC, p], E, J, R, c, A, B)
             thd = math.sqrt(f)
             node[_WCHD, p], node[_WPHD, p], node[_WF, p] = chd, phd, f
             node[_WTHD, p], node[_WTAU, p] = thd, node[_WH, p] / thd
-        for p in range(count):
+        for p in range(uintp(count)):
             if not node[_WF, p] > 0.0:
                 return UNCONVERGED
             k = first + p * step
@@ -364,8 +370,8 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
             tol_p = max(QUAD_RTOL, min(NOISE_CAP, NOISE_FACTOR * noise))
             tol_t = max(TURN_TOL, min(NOISE_CAP, NOISE_FACTOR * noise))
         per, turn = 0.0, 0.0
-        for j in range(n + 1):
-            k = j * stride
+        for j in range(uintp(n + 1)):
+            k = j * uintp(stride)
             wt = weights[L, k] * scr[_TAU, k]
             per += wt
             turn += wt * scr[_CHD, k]
@@ -382,13 +388,14 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
     level -= 1
     n = FIRST_N << level
     stride = MAX_N // n
-    for j in range(n + 1):  # the level's points, gathered into rows for a loop free of calls
-        k = j * stride
+    un, ustride = uintp(n), uintp(stride)
+    for j in range(un + 1):  # the level's points, gathered into rows for a loop free of calls
+        k = j * ustride
         node[_SS, j], node[_TAU_C, j], node[_W_TAU, j] = s_all[k], scr[_TAU, k], cos_s[k]
         node[_IN_CHD, j], node[_IN_PHD, j], node[_IN_THD, j] = scr[_CHD, k], scr[_PHD, k], \
             scr[_THD, k]
         node[_IN_STH, j], node[_IN_CTH, j] = scr[_STH, k], scr[_CTH, k]
-    for j in range(n + 1):  # SIMD lanes
+    for j in range(un + 1):  # SIMD lanes
         tau, chd, phd = node[_TAU_C, j], node[_IN_CHD, j], node[_IN_PHD, j]
         thd, sth, cth = node[_IN_THD, j], node[_IN_STH, j], node[_IN_CTH, j]
         thdd, chdd, phdd = accelerations(sth, cth, thd, chd, phd, c, A, B)
@@ -412,7 +419,7 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
         node[_NORM, j] = normal
     off = offsets[level]
     _cumulate(qm, off, n, node, _CHD_TAU, _CHI)
-    for j in range(n + 1):
+    for j in range(un + 1):
         cc, sc = math.cos(node[_CHI, j]), math.sin(node[_CHI, j])
         node[_FX, j] = node[_U, j] * cc * node[_TAU_C, j] - node[_W_TAU, j] * sc
         node[_FY, j] = node[_U, j] * sc * node[_TAU_C, j] + node[_W_TAU, j] * cc
@@ -420,14 +427,14 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
     _cumulate(qm, off, n, node, _FY, _Y)
     period, dchi = 2.0 * per_fine, 2.0 * turn_fine
     v_int = 0.0
-    for j in range(n + 1):
-        v_int += weights[level, j * stride] * node[_TAU_C, j] * node[_SPEED, j]
+    for j in range(un + 1):
+        v_int += weights[level, j * ustride] * node[_TAU_C, j] * node[_SPEED, j]
     # the path heading's total absolute change over the half cycle: its variation over the
     # points, psi = chi + the velocity's direction in the heading frame (exact where psi is
     # monotone between points; a quadrature of |psidot| would miss the spikes at a cusp)
     t_turn = 0.0
     psi_prev = node[_CHI, 0] + math.atan2(node[_W, 0], node[_U, 0])
-    for j in range(1, n + 1):
+    for j in range(uintp(1), un + 1):
         psi = node[_CHI, j] + math.atan2(node[_W, j], node[_U, j])
         dpsi = psi - psi_prev
         t_turn += abs(dpsi - 2.0 * math.pi * math.floor((dpsi + math.pi) / (2.0 * math.pi)))
@@ -444,7 +451,7 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
         rcy = (sd * bx + (1.0 - cd) * by) / det
     else:
         rcx = rcy = math.nan
-    for j in range(n + 1):
+    for j in range(un + 1):
         node[_FX, j] = math.sqrt((node[_X, j] - rcx) ** 2 + (node[_Y, j] - rcy) ** 2)
     r_min = _extremum(node, _FX, n, -1.0)
     r_max = _extremum(node, _FX, n, 1.0)
