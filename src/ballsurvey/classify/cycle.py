@@ -527,10 +527,11 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
 
 @jit
 def _block(y0, params, T, stop_after, steady_tol, tabs_s, sin_s, cos_s, weights, qm, offsets,
-           lo, hi, obs, status):
+           first, n, stride, obs, status):
+    """Launches first, first + stride, ... below n, in sequence (one thread's share)."""
     scr = np.empty((N_SCRATCH, MAX_N + 1))
     node = np.empty((N_NODE, MAX_N + 1))
-    for i in range(lo, hi):
+    for i in range(first, n, stride):
         status[i] = cycle_one(y0[2, i], y0[5, i], y0[6, i], y0[7, i], params[0, i],
                               params[1, i], params[2, i], T, stop_after, steady_tol, tabs_s,
                               sin_s, cos_s, weights, qm, offsets, scr, node, obs, i)
@@ -539,12 +540,15 @@ def _block(y0, params, T, stop_after, steady_tol, tabs_s, sin_s, cos_s, weights,
 @njit(parallel=True, nogil=True, error_model="numpy", cache=True)
 def _run_parallel(y0, params, T, stop_after, steady_tol, s, sin_s, cos_s, weights, qm, offsets,
                   block, obs, status):
+    """Blocks of about `block` launches over the threads. Block bi holds every nblocks-th
+    launch from bi, not a contiguous run: the cost of a launch drifts along a map's axes (by 10
+    % over a headline unit), and numba hands each thread a contiguous range of blocks, so
+    contiguous blocks would leave one thread the dearer half."""
     n = y0.shape[1]
     nblocks = (n + block - 1) // block
     for bi in nb.prange(nblocks):
-        lo = bi * block
         _block(y0, params, T, stop_after, steady_tol, s, sin_s, cos_s, weights, qm, offsets,
-               lo, min(n, lo + block), obs, status)
+               bi, n, nblocks, obs, status)
 
 
 def cycles_by_quadrature(y0, params, T, *, stop_after=0, steady_tol=1e-8, block=64,
@@ -563,6 +567,6 @@ def cycles_by_quadrature(y0, params, T, *, stop_after=0, steady_tol=1e-8, block=
             _run_parallel(y0, params, float(T), int(stop_after), float(steady_tol), *tabs,
                           max(1, int(block)), obs, status)
         else:  # the block kernel itself, GIL released: no serial driver to compile
-            _block(y0, params, float(T), int(stop_after), float(steady_tol), *tabs, 0, n, obs,
-                   status)
+            _block(y0, params, float(T), int(stop_after), float(steady_tol), *tabs, 0, n, 1,
+                   obs, status)
     return obs, status
