@@ -170,9 +170,11 @@ def label_fields(obs: np.ndarray, flat_face_theta, th: Thresholds = Thresholds()
         raw_rad = np.abs(np.radians(raw))
         sharp = o[ob.O_C_PSID] * o[ob.O_C_DUR] / raw_rad  # peak / mean rate of the raw turn
         monotone = raw_rad / o[ob.O_C_TURN]
-        star_p, star_q = star_type(turn, th.max_star_points)
         # closure: how far a corner drifts per circuit of the nearest closed polygon / star
         is_star = abs_turn > th.star_min_turn_deg
+        # the star {p/q} is read only where the turn makes a star (0 elsewhere)
+        star_p, star_q = np.zeros(n, dtype=np.int16), np.zeros(n)
+        star_p[is_star], star_q[is_star] = star_type(turn[is_star], th.max_star_points)
         p_close = np.where(is_star, star_p, np.rint(n_sides))
         q_close = np.where(is_star, star_q, 1)
         delta = np.radians(p_close * abs_turn - 360.0 * q_close)
