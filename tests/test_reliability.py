@@ -616,9 +616,9 @@ def test_chunks_are_labelled_in_the_part_writers_thread(tmp_path, reference, mon
     where = []
     label = compute.survey_fields
 
-    def recorded(run):
+    def recorded(run, *asked):
         where.append(threading.current_thread().name)
-        return label(run)
+        return label(run, *asked)
     monkeypatch.setattr(compute, "survey_fields", recorded)
     run_sweep(spec, command="test")
     assert where and all(name.startswith("ballsurvey-part") for name in where), where

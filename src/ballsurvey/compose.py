@@ -365,15 +365,20 @@ def run_resisted_trajectory(y0_col, params_col, rolling_resistance: float, T_nd:
                                tableau=ADAPTIVE[method])
 
 
-def classify(res: oc.Result, flat_face_theta, thresholds: Thresholds = Thresholds()) -> dict:
-    """Labels and fields of a run (non-dimensional), with its `formulation` and `t_stop_s`."""
+def classify(res: oc.Result, flat_face_theta, thresholds: Thresholds = Thresholds(),
+             variables=None) -> dict:
+    """Labels and fields of a run (non-dimensional), with its `formulation` and `t_stop_s`;
+    variables: the names wanted (None: all; `label_fields`)."""
     failure = np.full(res.outcome.shape, -1, dtype=np.int64)
     for code, word in FAILURE_LABEL.items():
         failure[res.outcome == code] = CODE[word]
     f = label_fields(res.obs, flat_face_theta, thresholds,
-                     chart_free=res.formulation == oc.FIXED_FRAME, failure=failure)
-    f["formulation"] = res.formulation.astype(np.int8)
-    f["t_stop_s"] = res.t_stop
+                     chart_free=res.formulation == oc.FIXED_FRAME, failure=failure,
+                     variables=variables)
+    if variables is None or "formulation" in variables:
+        f["formulation"] = res.formulation.astype(np.int8)
+    if variables is None or "t_stop_s" in variables:
+        f["t_stop_s"] = res.t_stop
     return f
 
 
@@ -413,10 +418,12 @@ def survey_run(table: dict, *, T: float, dt: float, method: str = "rk4", rtol=1e
     return SurveyRun(res, flat, table["a"], tu, table["M"], thresholds)
 
 
-def survey_fields(run: SurveyRun) -> dict:
-    """The labelling half of `survey` (numpy, on one core): SI fields of a `survey_run`."""
+def survey_fields(run: SurveyRun, variables=None) -> dict:
+    """The labelling half of `survey` (numpy, on one core): SI fields of a `survey_run`
+    (variables: the names wanted, None: all)."""
     t0 = time.perf_counter()
-    out = fields_to_si(classify(run.res, run.flat, run.thresholds), run.a, run.tu, run.M)
+    out = fields_to_si(classify(run.res, run.flat, run.thresholds, variables), run.a, run.tu,
+                       run.M)
     TIMES["label"] += time.perf_counter() - t0
     return out
 
