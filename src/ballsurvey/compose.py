@@ -107,6 +107,9 @@ def needs_fallback(res: oc.Result, thresholds: Thresholds = Thresholds()) -> np.
     thresholds.max_energy_drift after |theta| passed NEAR_SINGULAR_THETA: the Euler chart's
     failures (there chidot ~ 1 / cos theta outruns the step). Drift or blow-up at low tilt is the
     step's fault and stays reported as such."""
+    euler = res.formulation == oc.EULER_ANGLES
+    if not euler.any():  # quadrature, the fixed frame: nothing to test
+        return euler
     obs, out = res.obs, res.outcome
     with np.errstate(invalid="ignore"):
         tilt = np.maximum(np.abs(obs[O_TH_MAX]), np.abs(obs[O_TH_MIN]))
@@ -115,8 +118,7 @@ def needs_fallback(res: oc.Result, thresholds: Thresholds = Thresholds()) -> np.
     chart = np.isin(out, (oc.CHART_SINGULAR, oc.STEP_BUDGET, oc.STEP_UNDERFLOW))
     with np.errstate(invalid="ignore"):
         near_vertical = tilt > NEAR_VERTICAL_THETA
-    return (res.formulation == oc.EULER_ANGLES) & (
-        chart | near_vertical | (bad_num & (tilt > NEAR_SINGULAR_THETA)))
+    return euler & (chart | near_vertical | (bad_num & (tilt > NEAR_SINGULAR_THETA)))
 
 
 #: the fallback's integration settings, one set for a map's launches and a single trajectory
