@@ -283,3 +283,34 @@ def test_paper_spec_matches_the_launch_table(paper_launches):
         i = names.index(key)
         for k, v in launch.items():
             assert float(spec.points[k][i]) == v, (key, k)
+
+
+def test_fields_asked_for_are_the_same_as_all_fields():
+    """A map stores a few variables, and the labeller then makes only those: each one asked for,
+    and the label, are the same bits as where every field is made (on random launches: stars,
+    loops, circles, flat-face launches, one integrated in the fixed frame among them), and only
+    the names asked for (and the label) come back."""
+    from ballsurvey.compose import classify, run_launches
+    from ballsurvey.integrate import outcome as oc
+    from ballsurvey.schema import RESULT_VARIABLES
+    from ballsurvey.units import StepPlan, launch_state
+
+    ball = Ball.paper()
+    rng = np.random.default_rng(3)
+    n = 400
+    y0 = launch_state(rng.uniform(-20, 89.9, n), rng.uniform(-2, 2, n) * (rng.random(n) < 0.5),
+                      rng.uniform(-12, 12, n), rng.uniform(-8, 8, n), ball.time_unit)
+    params = np.repeat(ball.nondim_params()[:, None], n, 1)
+    res = run_launches(y0, params, StepPlan(20.0, 1e-3, ball.time_unit), "quadrature", cycles=2)
+    every = classify(res, ball.flat_face_theta_rad)
+    assert set(every) == set(RESULT_VARIABLES)
+    labels = set(every["label"].tolist())
+    assert {CODE["star"], CODE["rosette"], CODE["circle"]} <= labels
+    assert (res.formulation == oc.FIXED_FRAME).any() and (res.formulation == oc.QUADRATURE).any()
+    for asked in [("label",), ("label", "n_sides"), ("closure_m", "star_step", "t_stop_s")] + \
+            [(v,) for v in RESULT_VARIABLES]:
+        some = classify(res, ball.flat_face_theta_rad, variables=asked)
+        assert set(some) == {"label", *asked}
+        for k in some:
+            assert some[k].dtype == every[k].dtype
+            assert some[k].tobytes() == every[k].tobytes(), (asked, k)

@@ -87,6 +87,11 @@ def test_defect_fallback_uses_the_spec_thresholds(tmp_path, classify, formulatio
                                StepPlan(20.0, 1e-3, TU), fallback=False)
     assert compose.needs_fallback(res)[0]
     assert not compose.needs_fallback(res, Thresholds(max_energy_drift=1e-3))[0]
+    # the same record from a run outside the Euler chart (the fixed frame, quadrature) is that
+    # run's own: never sent to the fallback
+    for other in (oc.FIXED_FRAME, oc.QUADRATURE):
+        moved = res._replace(formulation=np.full_like(res.formulation, other))
+        assert not compose.needs_fallback(moved).any()
 
 
 def test_defect_simulate_fields_are_si_like_the_map(tmp_path):

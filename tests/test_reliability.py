@@ -419,6 +419,31 @@ def test_failed_verification_keeps_the_parts(tmp_path, reference, monkeypatch):
     same_map(run_sweep(spec, resume=True, command="test"), reference)
 
 
+@pytest.mark.parametrize("read", [None, 1])
+def test_verification_reads_every_label(tmp_path, monkeypatch, read):
+    """The written map is checked before the parts go: its spec digest, its shape and every
+    label (a code outside the words, in the first or the last launch, fails it), whether the
+    labels are read back at once or a chunk at a time."""
+    import netCDF4
+
+    spec = tiny_spec(tmp_path)
+    out = run_sweep(spec, command="test")
+    if read is not None:
+        monkeypatch.setattr(engine, "VERIFY_READ", read)
+    engine.verify_output(out, spec)
+    with pytest.raises(RunError, match="does not hold"):
+        engine.verify_output(out, replace(spec, digest="0" * 64))
+    for cell, bad in (((0, 0, 0, 0), 99), ((-1, 0, -1, -1), -1)):
+        with netCDF4.Dataset(out, "a") as nc:
+            good = int(nc.variables["label"][cell])
+            nc.variables["label"][cell] = bad
+        with pytest.raises(RunError, match="does not hold"):
+            engine.verify_output(out, spec)
+        with netCDF4.Dataset(out, "a") as nc:
+            nc.variables["label"][cell] = good
+        engine.verify_output(out, spec)
+
+
 def test_full_disk_at_assembly_is_one_line_and_leaves_no_temporary(tmp_path, reference,
                                                                     monkeypatch, capsys):
     def full(path, *a, **k):
@@ -616,9 +641,9 @@ def test_chunks_are_labelled_in_the_part_writers_thread(tmp_path, reference, mon
     where = []
     label = compute.survey_fields
 
-    def recorded(run):
+    def recorded(run, *asked):
         where.append(threading.current_thread().name)
-        return label(run)
+        return label(run, *asked)
     monkeypatch.setattr(compute, "survey_fields", recorded)
     run_sweep(spec, command="test")
     assert where and all(name.startswith("ballsurvey-part") for name in where), where

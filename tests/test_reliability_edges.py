@@ -643,10 +643,10 @@ def test_a_second_ctrl_c_while_an_interrupted_chunk_is_labelled_keeps_what_it_co
     spec = tiny_spec(tmp_path, "burst.nc")
     label = compute.survey_fields
 
-    def burst(run):  # the second Ctrl-C, delivered at once, inside the main thread's labelling
-        if threading.current_thread() is threading.main_thread():
+    def burst(run, *asked):  # the second Ctrl-C, delivered at once, inside the main thread's
+        if threading.current_thread() is threading.main_thread():  # labelling
             os.kill(os.getpid(), signal.SIGINT)
-        return label(run)
+        return label(run, *asked)
 
     def on_unit(done, total):
         if done == 4:
@@ -694,13 +694,13 @@ def test_ctrl_c_while_the_writer_labels_a_chunk_counts_only_what_is_on_disk(tmp_
     spec = tiny_spec(tmp_path, f"wl{at}.nc")
     label, calls = compute.survey_fields, []
 
-    def ctrl_c(run):
+    def ctrl_c(run, *asked):
         calls.append(1)
         if len(calls) == at:
             assert threading.current_thread() is not threading.main_thread()
             for _ in range(at):
                 os.kill(os.getpid(), signal.SIGINT)
-        return label(run)
+        return label(run, *asked)
     monkeypatch.setattr(compute, "survey_fields", ctrl_c)
     with pytest.raises(engine.SweepInterrupted) as exc:
         run_sweep(spec, command="test")

@@ -107,6 +107,9 @@ def needs_fallback(res: oc.Result, thresholds: Thresholds = Thresholds()) -> np.
     thresholds.max_energy_drift after |theta| passed NEAR_SINGULAR_THETA: the Euler chart's
     failures (there chidot ~ 1 / cos theta outruns the step). Drift or blow-up at low tilt is the
     step's fault and stays reported as such."""
+    euler = res.formulation == oc.EULER_ANGLES
+    if not euler.any():  # quadrature, the fixed frame: nothing to test
+        return euler
     obs, out = res.obs, res.outcome
     with np.errstate(invalid="ignore"):
         tilt = np.maximum(np.abs(obs[O_TH_MAX]), np.abs(obs[O_TH_MIN]))
@@ -115,8 +118,7 @@ def needs_fallback(res: oc.Result, thresholds: Thresholds = Thresholds()) -> np.
     chart = np.isin(out, (oc.CHART_SINGULAR, oc.STEP_BUDGET, oc.STEP_UNDERFLOW))
     with np.errstate(invalid="ignore"):
         near_vertical = tilt > NEAR_VERTICAL_THETA
-    return (res.formulation == oc.EULER_ANGLES) & (
-        chart | near_vertical | (bad_num & (tilt > NEAR_SINGULAR_THETA)))
+    return euler & (chart | near_vertical | (bad_num & (tilt > NEAR_SINGULAR_THETA)))
 
 
 #: the fallback's integration settings, one set for a map's launches and a single trajectory
@@ -365,15 +367,20 @@ def run_resisted_trajectory(y0_col, params_col, rolling_resistance: float, T_nd:
                                tableau=ADAPTIVE[method])
 
 
-def classify(res: oc.Result, flat_face_theta, thresholds: Thresholds = Thresholds()) -> dict:
-    """Labels and fields of a run (non-dimensional), with its `formulation` and `t_stop_s`."""
+def classify(res: oc.Result, flat_face_theta, thresholds: Thresholds = Thresholds(),
+             variables=None) -> dict:
+    """Labels and fields of a run (non-dimensional), with its `formulation` and `t_stop_s`;
+    variables: the names wanted (None: all; `label_fields`)."""
     failure = np.full(res.outcome.shape, -1, dtype=np.int64)
     for code, word in FAILURE_LABEL.items():
         failure[res.outcome == code] = CODE[word]
     f = label_fields(res.obs, flat_face_theta, thresholds,
-                     chart_free=res.formulation == oc.FIXED_FRAME, failure=failure)
-    f["formulation"] = res.formulation.astype(np.int8)
-    f["t_stop_s"] = res.t_stop
+                     chart_free=res.formulation == oc.FIXED_FRAME, failure=failure,
+                     variables=variables)
+    if variables is None or "formulation" in variables:
+        f["formulation"] = res.formulation.astype(np.int8)
+    if variables is None or "t_stop_s" in variables:
+        f["t_stop_s"] = res.t_stop
     return f
 
 
@@ -413,10 +420,12 @@ def survey_run(table: dict, *, T: float, dt: float, method: str = "rk4", rtol=1e
     return SurveyRun(res, flat, table["a"], tu, table["M"], thresholds)
 
 
-def survey_fields(run: SurveyRun) -> dict:
-    """The labelling half of `survey` (numpy, on one core): SI fields of a `survey_run`."""
+def survey_fields(run: SurveyRun, variables=None) -> dict:
+    """The labelling half of `survey` (numpy, on one core): SI fields of a `survey_run`
+    (variables: the names wanted, None: all)."""
     t0 = time.perf_counter()
-    out = fields_to_si(classify(run.res, run.flat, run.thresholds), run.a, run.tu, run.M)
+    out = fields_to_si(classify(run.res, run.flat, run.thresholds, variables), run.a, run.tu,
+                       run.M)
     TIMES["label"] += time.perf_counter() - t0
     return out
 

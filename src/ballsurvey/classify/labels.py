@@ -127,7 +127,7 @@ def line_turn_deg(th: Thresholds) -> float:
 
 
 def label_fields(obs: np.ndarray, flat_face_theta, th: Thresholds = Thresholds(), *,
-                 chart_free=None, failure=None) -> dict:
+                 chart_free=None, failure=None, variables=None) -> dict:
     """Turn observer slots (N_OBS, n) into labels and fields, non-dimensional: the names are the
     stored variable names, whose suffix or `FIELD_DIMENSIONS` gives the SI unit they take in
     `ballsurvey.units.fields_to_si`.
@@ -136,6 +136,8 @@ def label_fields(obs: np.ndarray, flat_face_theta, th: Thresholds = Thresholds()
     chart_free (bool, n): launches integrated without the Euler chart (their net turn comes from
     the chord between theta maxima). failure (int, n): the label word's code a run failure
     decides (`blew_up`, `singular` or `unresolved`), -1 where the run did not fail.
+    variables: the names wanted (None: all); `label` is always given, names it does not make
+    are passed over, and a field not wanted is not computed.
     """
     o = np.asarray(obs, dtype=float)
     n = o.shape[1]
@@ -146,7 +148,6 @@ def label_fields(obs: np.ndarray, flat_face_theta, th: Thresholds = Thresholds()
     with np.errstate(invalid="ignore", divide="ignore"):
         n_cyc = np.maximum(o[ob.O_NMAX] - 1.0, 0.0)
         has = n_cyc >= 1
-        period = np.where(has, (o[ob.O_TL] - o[ob.O_T1]) / np.where(has, n_cyc, 1.0), np.nan)
         dchi = np.where(has, (o[ob.O_CHIL] - o[ob.O_CHI1]) / np.where(has, n_cyc, 1.0), np.nan)
         turn = fold_deg(np.degrees(dchi))
         # chart-free alternative: mean folded rotation of the chord between successive maxima;
@@ -169,14 +170,10 @@ def label_fields(obs: np.ndarray, flat_face_theta, th: Thresholds = Thresholds()
         loops = np.rint((raw - turn) / 360.0)
         raw_rad = np.abs(np.radians(raw))
         sharp = o[ob.O_C_PSID] * o[ob.O_C_DUR] / raw_rad  # peak / mean rate of the raw turn
-        monotone = raw_rad / o[ob.O_C_TURN]
-        star_p, star_q = star_type(turn, th.max_star_points)
-        # closure: how far a corner drifts per circuit of the nearest closed polygon / star
         is_star = abs_turn > th.star_min_turn_deg
-        p_close = np.where(is_star, star_p, np.rint(n_sides))
-        q_close = np.where(is_star, star_q, 1)
-        delta = np.radians(p_close * abs_turn - 360.0 * q_close)
-        closure = np.abs(2.0 * rho * np.sin(delta / 2.0))
+        # the star {p/q} is read only where the turn makes a star (0 elsewhere)
+        star_p, star_q = np.zeros(n, dtype=np.int16), np.zeros(n)
+        star_p[is_star], star_q[is_star] = star_type(turn[is_star], th.max_star_points)
         theta_range = np.degrees(o[ob.O_TH_MAX] - o[ob.O_TH_MIN])
         # radial spread of the path about its orbit centre over a cycle (= over an orbit)
         r_lo, r_hi = o[ob.O_C_RMIN], o[ob.O_C_RMAX]
@@ -269,31 +266,51 @@ def label_fields(obs: np.ndarray, flat_face_theta, th: Thresholds = Thresholds()
     e0 = o[ob.O_E0]
     fin = lambda a: np.where(has & ~steady, a, np.nan)  # noqa: E731 - per-cycle fields
     turning = lambda a: np.where(line, np.nan, fin(a))  # noqa: E731 - fields of a turn
-    return {
-        "label": label,
-        "n_sides": turning(n_sides),
-        "turn_per_cycle_deg": turning(turn),
-        "theta_period_s": fin(period),
-        "side_m": fin(o[ob.O_C_SIDE]),
-        "chord_m": fin(side),
-        "roundness": fin(roundness),
-        "corner_kind": kind,
-        "corner_sharpness": fin(sharp),
-        "turn_monotonicity": fin(monotone),
-        "closure_m": turning(closure),
-        "loops_per_cycle": fin(loops),
-        "star_points": np.where(label == CODE["star"], star_p, 0).astype(np.int16),
-        "star_step": np.where(label == CODE["star"], star_q, 0).astype(np.int16),
-        "n_theta_cycles": n_cyc.astype(np.int32),
+    star = lambda a: np.where(label == CODE["star"], a, 0).astype(np.int16)  # noqa: E731
+
+    def period():
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(has, (o[ob.O_TL] - o[ob.O_T1]) / np.where(has, n_cyc, 1.0), np.nan)
+
+    def monotone():
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return raw_rad / o[ob.O_C_TURN]
+
+    def closure():
+        # how far a corner drifts per circuit of the nearest closed polygon / star
+        with np.errstate(invalid="ignore", divide="ignore"):
+            p_close = np.where(is_star, star_p, np.rint(n_sides))
+            q_close = np.where(is_star, star_q, 1)
+            delta = np.radians(p_close * abs_turn - 360.0 * q_close)
+            return np.abs(2.0 * rho * np.sin(delta / 2.0))
+
+    # each field made only when asked for (`variables`)
+    made = {
+        "n_sides": lambda: turning(n_sides),
+        "turn_per_cycle_deg": lambda: turning(turn),
+        "theta_period_s": lambda: fin(period()),
+        "side_m": lambda: fin(o[ob.O_C_SIDE]),
+        "chord_m": lambda: fin(side),
+        "roundness": lambda: fin(roundness),
+        "corner_kind": lambda: kind,
+        "corner_sharpness": lambda: fin(sharp),
+        "turn_monotonicity": lambda: fin(monotone()),
+        "closure_m": lambda: turning(closure()),
+        "loops_per_cycle": lambda: fin(loops),
+        "star_points": lambda: star(star_p),
+        "star_step": lambda: star(star_q),
+        "n_theta_cycles": lambda: n_cyc.astype(np.int32),
         # also where no cycle completed (theta's largest step between samples still tells how
         # coarse the sampling is: an aliased run may see no cycle at all); not for steady runs
-        "samples_per_cycle": np.where(steady, np.nan, samples),
-        "chord_turn_per_cycle_deg": turning(chord_turn),
-        "theta_min_deg": np.degrees(o[ob.O_TH_MIN]),
-        "theta_max_deg": np.degrees(o[ob.O_TH_MAX]),
-        "max_friction_ratio": o[ob.O_FRIC],
-        "min_normal_force_ratio": o[ob.O_NMIN],
-        "energy_drift": o[ob.O_DE] / np.abs(e0),
-        "jellett_drift": o[ob.O_DJ],
-        "routh_drift": o[ob.O_DR],
+        "samples_per_cycle": lambda: np.where(steady, np.nan, samples),
+        "chord_turn_per_cycle_deg": lambda: turning(chord_turn),
+        "theta_min_deg": lambda: np.degrees(o[ob.O_TH_MIN]),
+        "theta_max_deg": lambda: np.degrees(o[ob.O_TH_MAX]),
+        "max_friction_ratio": lambda: o[ob.O_FRIC],
+        "min_normal_force_ratio": lambda: o[ob.O_NMIN],
+        "energy_drift": lambda: o[ob.O_DE] / np.abs(e0),
+        "jellett_drift": lambda: o[ob.O_DJ],
+        "routh_drift": lambda: o[ob.O_DR],
     }
+    wanted = made if variables is None else [k for k in made if k in variables]
+    return {"label": label, **{k: made[k]() for k in wanted}}

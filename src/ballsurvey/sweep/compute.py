@@ -71,7 +71,7 @@ def fields_of(result) -> dict:
 
 def _labelled(run, variables) -> dict:
     """{variable: array} of a `compose.SurveyRun`, labelled."""
-    f = survey_fields(run)
+    f = survey_fields(run, variables)
     return {k: np.asarray(f[k]) for k in variables}
 
 
