@@ -527,28 +527,43 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
 
 @jit
 def _block(y0, params, T, stop_after, steady_tol, tabs_s, sin_s, cos_s, weights, qm, offsets,
-           first, n, stride, obs, status):
-    """Launches first, first + stride, ... below n, in sequence (one thread's share)."""
+           lo, hi, obs, status):
     scr = np.empty((N_SCRATCH, MAX_N + 1))
     node = np.empty((N_NODE, MAX_N + 1))
-    for i in range(first, n, stride):
+    for i in range(lo, hi):
         status[i] = cycle_one(y0[2, i], y0[5, i], y0[6, i], y0[7, i], params[0, i],
                               params[1, i], params[2, i], T, stop_after, steady_tol, tabs_s,
                               sin_s, cos_s, weights, qm, offsets, scr, node, obs, i)
 
 
+@jit
+def _spread_step(nblocks):
+    """A step near nblocks / golden ratio with no common factor with nblocks: bi -> bi * step
+    mod nblocks visits every block once, and any run of successive bi lands all over."""
+    step = max(1, int(nblocks * 0.6180339887498949))
+    while True:
+        a, b = step, nblocks
+        while b:
+            a, b = b, a % b
+        if a == 1:
+            return step
+        step += 1
+
+
 @njit(parallel=True, nogil=True, error_model="numpy", cache=True)
 def _run_parallel(y0, params, T, stop_after, steady_tol, s, sin_s, cos_s, weights, qm, offsets,
                   block, obs, status):
-    """Blocks of about `block` launches over the threads. Block bi holds every nblocks-th
-    launch from bi, not a contiguous run: the cost of a launch drifts along a map's axes (by 10
-    % over a headline unit), and numba hands each thread a contiguous range of blocks, so
-    contiguous blocks would leave one thread the dearer half."""
+    """Blocks of `block` successive launches over the threads, in a spread order: the cost of a
+    launch drifts along a map's axes (by 5-13 % over half a headline unit), and numba hands
+    each thread a contiguous range of the loop, so blocks in launch order would leave one thread
+    the dearer half while the other waits."""
     n = y0.shape[1]
     nblocks = (n + block - 1) // block
+    step = _spread_step(nblocks)
     for bi in nb.prange(nblocks):
+        lo = (bi * step) % nblocks * block
         _block(y0, params, T, stop_after, steady_tol, s, sin_s, cos_s, weights, qm, offsets,
-               bi, n, nblocks, obs, status)
+               lo, min(n, lo + block), obs, status)
 
 
 def cycles_by_quadrature(y0, params, T, *, stop_after=0, steady_tol=1e-8, block=64,
@@ -567,6 +582,6 @@ def cycles_by_quadrature(y0, params, T, *, stop_after=0, steady_tol=1e-8, block=
             _run_parallel(y0, params, float(T), int(stop_after), float(steady_tol), *tabs,
                           max(1, int(block)), obs, status)
         else:  # the block kernel itself, GIL released: no serial driver to compile
-            _block(y0, params, float(T), int(stop_after), float(steady_tol), *tabs, 0, n, 1,
-                   obs, status)
+            _block(y0, params, float(T), int(stop_after), float(steady_tol), *tabs, 0, n, obs,
+                   status)
     return obs, status
