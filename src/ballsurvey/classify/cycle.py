@@ -209,20 +209,20 @@ def _turning_point(start, d, ref, q_start, f_noise, E, J, R, c, A, B):
     The search follows q = F / |theta - ref| when ref is a root of F itself (the launch at a
     turning point: q has no root there, and is linear in theta where F is a parabola), else q =
     F (ref NaN); q_start is q at start. Each probe's step is the linear extrapolation of q's last
-    two values to its root, overshot by PREDICT_OVERSHOOT (at most SEARCH_STEP_MAX; doubling
-    from SEARCH_STEP where q does not fall), so a near-parabolic F is bracketed in one or two
-    probes; the root is then solved from q's linear interpolation in the bracket (`_root`)."""
+    two values to its root, overshot by PREDICT_OVERSHOOT (at most PREDICT_STEP_MAX); where q
+    does not fall, the step doubles from SEARCH_STEP (at most SEARCH_STEP_MAX). A near-parabolic
+    F is so bracketed in one or two probes; the root is then solved from q's linear
+    interpolation in the bracket (`_root`)."""
     deflate = math.isfinite(ref)
     a, qa, step = start, q_start, SEARCH_STEP
     while True:
         b = a + d * step
-        if abs(b) >= TILT_LIMIT:
+        vertical = abs(b) >= TILT_LIMIT
+        if vertical:
             b = d * TILT_LIMIT
-            fb = _F(b, E, J, R, c, A, B)
-            if fb > 0.0:
-                return math.nan
-        else:
-            fb = _F(b, E, J, R, c, A, B)
+        fb = _F(b, E, J, R, c, A, B)
+        if vertical and fb > 0.0:
+            return math.nan
         qb = fb / abs(b - ref) if deflate else fb
         if fb <= 0.0:
             x = a + (b - a) * (qa / (qa - qb)) if qa - qb > 0.0 else 0.5 * (a + b)
@@ -239,7 +239,8 @@ def _turning_point(start, d, ref, q_start, f_noise, E, J, R, c, A, B):
 
 @jit
 def _end_tau(th, h, E, J, R, c, A, B):
-    """dt/ds at a turning point: the limit sqrt(h / |thetaddot|)."""
+    """(dt/ds, chidot, phidot, sin, cos) at a turning point th: dt/ds is the limit
+    sqrt(h / |thetaddot|)."""
     sth, cth, chd, phd, _ = _rates(th, E, J, R, c, A, B)
     thdd = accelerations(sth, cth, 0.0, chd, phd, c, A, B)[0]
     return math.sqrt(h / abs(thdd)), chd, phd, sth, cth
