@@ -169,6 +169,29 @@ def test_a_steady_launch_goes_to_the_integrator():
     assert q["formulation"][0] == FIXED_FRAME and LABELS[q["label"][0]] == "circle"
 
 
+def test_quadrature_tables_integrate_smooth_functions_to_rounding():
+    """Each level's Clenshaw-Curtis weights and cumulative matrix against closed-form integrals
+    over s in [-pi/2, pi/2]: cos s (antiderivative sin s + 1), e^s and a polynomial of the
+    level's degree (exact for the rule)."""
+    s, _, _, weights, qm, offsets = cycle.tables()
+    for L in range(cycle.LEVELS):
+        n = cycle.FIRST_N << L
+        sl = s[:: cycle.MAX_N // n]
+        w = weights[L, :: cycle.MAX_N // n]
+        assert np.all(weights[L][np.arange(cycle.MAX_N + 1) % (cycle.MAX_N // n) != 0] == 0.0)
+        assert abs(w @ np.cos(sl) - 2.0) < 1e-14
+        assert abs(w @ np.exp(sl) - 2.0 * math.sinh(math.pi / 2)) < 1e-14
+        x = 2.0 * sl / math.pi  # T_n(x) integrates exactly: int_-1^1 T_n = 2 / (1 - n^2), n even
+        assert abs(w @ np.cos(n * np.arccos(np.clip(x, -1, 1))) * 2.0 / math.pi
+                   - 2.0 / (1.0 - n * n)) < 1e-13
+        if L == cycle.LEVELS - 1:
+            assert offsets[L + 1] == offsets[L]  # the path is never taken at the finest level
+            continue
+        q = qm[offsets[L]:offsets[L + 1]].reshape(n + 1, n + 1).T  # stored by columns
+        assert np.abs(q @ np.cos(sl) - (np.sin(sl) + 1.0)).max() < 1e-14
+        assert np.abs(q @ np.exp(sl) - (np.exp(sl) - math.exp(-math.pi / 2))).max() < 1e-14
+
+
 def test_turning_points_of_small_oscillations_against_brentq():
     """Launches near a steady circle (at rest in theta a little off it, or on it with a small
     tilt rate): oscillations of thousandths to tenths of a degree, where the turning-point

@@ -115,8 +115,15 @@ _WS, _WC, _WH, _WCHD, _WPHD, _WF, _WTHD, _WTAU = range(8)
 def tables():
     """(s, sin s, cos s at the finest level's MAX_N + 1 points; weights (LEVELS, MAX_N + 1):
     level L's Clenshaw-Curtis weights in s at the finest level's indices (0 elsewhere);
-    cumulative integration matrices of all levels, flat (each by columns), and their offsets).
-    Level L's point j is the finest level's point j * (MAX_N >> (L + log2 FIRST_N))."""
+    cumulative integration matrices of the levels below the finest (the path is never taken at
+    the finest), flat (each by columns), and their offsets).
+    Level L's point j is the finest level's point j * (MAX_N >> (L + log2 FIRST_N)).
+
+    At x_j = -cos(pi j / n) (s = pi x / 2), T_k(x_j) = (-1)^k cos(pi k j / n), so a function's
+    Chebyshev coefficients from its values are a cosine transform (the interpolation matrix's
+    inverse in closed form: no matrix to invert); its integral's coefficients are numpy's
+    `chebint` of them, summed (every T_k is 1 at x = 1) for the weights, evaluated at the points
+    for the cumulative matrices."""
     from numpy.polynomial import chebyshev as ch
 
     k = np.arange(MAX_N + 1)
@@ -126,13 +133,21 @@ def tables():
     mats, offsets = [], np.zeros(LEVELS + 1, dtype=np.int64)
     for L in range(LEVELS):
         n = FIRST_N << L
-        x = -np.cos(math.pi * np.arange(n + 1) / n)
-        vinv = np.linalg.inv(ch.chebvander(x, n))
-        q = ch.chebvander(x, n + 1) @ ch.chebint(vinv, lbnd=-1.0, axis=0) * (0.5 * math.pi)
-        q[0] = 0.0
-        weights[L, ::MAX_N // n] = q[-1]
-        mats.append(q.T.ravel())  # by columns (`_cumulate`)
-        offsets[L + 1] = offsets[L] + q.size
+        j = np.arange(n + 1)
+        halve = np.where((j == 0) | (j == n), 0.5, 1.0)
+        # coefficients from values: c_k = (2 / n) h_k sum_j h_j (-1)^k cos(pi k j / n) f_j
+        # (h: 1/2 at the ends), the angle reduced mod 2 pi before the cosine
+        vinv = (2.0 / n) * ((-1.0) ** j * halve)[:, None] * halve[None, :] * np.cos(
+            math.pi * (np.outer(j, j) % (2 * n)) / n)
+        integ = ch.chebint(vinv, lbnd=-1.0, axis=0) * (0.5 * math.pi)
+        weights[L, ::MAX_N // n] = integ.sum(axis=0)
+        size = 0
+        if L < LEVELS - 1:
+            q = ch.chebvander(-np.cos(math.pi * j / n), n + 1) @ integ
+            q[0] = 0.0
+            mats.append(q.T.ravel())  # by columns (`_cumulate`)
+            size = q.size
+        offsets[L + 1] = offsets[L] + size
     return (s, np.sin(s), np.cos(s), weights, np.concatenate(mats), offsets)
 
 
@@ -532,9 +547,13 @@ def _block(y0, params, T, stop_after, steady_tol, tabs_s, sin_s, cos_s, weights,
     scr = np.empty((N_SCRATCH, MAX_N + 1))
     node = np.empty((N_NODE, MAX_N + 1))
     for i in range(lo, hi):
-        status[i] = cycle_one(y0[2, i], y0[5, i], y0[6, i], y0[7, i], params[0, i],
-                              params[1, i], params[2, i], T, stop_after, steady_tol, tabs_s,
-                              sin_s, cos_s, weights, qm, offsets, scr, node, obs, i)
+        st = cycle_one(y0[2, i], y0[5, i], y0[6, i], y0[7, i], params[0, i], params[1, i],
+                       params[2, i], T, stop_after, steady_tol, tabs_s, sin_s, cos_s, weights,
+                       qm, offsets, scr, node, obs, i)
+        status[i] = st
+        if st != DONE:  # obs comes uninitialised (`cycles_by_quadrature`)
+            for q in range(ob.N_OBS):
+                obs[q, i] = math.nan
 
 
 @jit
@@ -575,7 +594,7 @@ def cycles_by_quadrature(y0, params, T, *, stop_after=0, steady_tol=1e-8, block=
     y0 = np.ascontiguousarray(y0, dtype=np.float64)
     params = np.ascontiguousarray(params, dtype=np.float64)
     n = y0.shape[1]
-    obs = np.full((ob.N_OBS, n), np.nan)
+    obs = np.empty((ob.N_OBS, n))  # every slot of every launch is written (`_block`)
     status = np.zeros(n, dtype=np.int8)
     if n:
         tabs = tables()
