@@ -322,8 +322,11 @@ def by_quadrature(y0, params, plan: StepPlan, *, rtol=1e-9, atol=1e-12, block=64
         r2 = lanes.integrate_observed(y0[:, bad], params[:, bad], plan.T_nd, rtol, atol,
                                       observer=STEP_OBSERVER, n_slots=N_OBS,
                                       method=QUADRATURE_FALLBACK, lanes=block,
-                                      h_init=plan.h_init_nd, parallel=parallel and bad.size > 1,
-                                      stop_after=stop)
+                                      h_init=plan.h_init_nd, stop_after=stop,
+                                      # one group of lanes runs on one thread: waking the
+                                      # others for it cost 1-3 ms a chunk (0.2-0.7 s of a
+                                      # headline map's 122 chunks of a few launches each)
+                                      parallel=parallel and bad.size > block)
         for name in ("obs", "outcome", "t_stop", "formulation", "n_steps", "y_end"):
             getattr(res, name)[..., bad] = getattr(r2, name)
         TIMES["integrator fallback"] += time.perf_counter() - t0
