@@ -38,6 +38,7 @@ def _module(text: str, name: str, folder: Path):
     text = (text.replace("from .._jit import njit", "from numba import njit")
             .replace("from ..physics", "from ballsurvey.physics")
             .replace("from . import observer", "from ballsurvey.classify import observer")
+            .replace("from .trig import", "from ballsurvey.classify.trig import")
             .replace("cache=True", "cache=False"))
     path = folder / f"{name}.py"
     path.write_text(text)

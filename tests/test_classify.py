@@ -288,18 +288,25 @@ def test_paper_spec_matches_the_launch_table(paper_launches):
 def test_fields_asked_for_are_the_same_as_all_fields():
     """A map stores a few variables, and the labeller then makes only those: each one asked for,
     and the label, are the same bits as where every field is made (on random launches: stars,
-    loops, circles, flat-face launches, one integrated in the fixed frame among them), and only
+    loops, circles, flat-face launches, and a steady circle integrated in the fixed frame), and only
     the names asked for (and the label) come back."""
     from ballsurvey.compose import classify, run_launches
     from ballsurvey.integrate import outcome as oc
+    from ballsurvey.physics.steady import spin_for_circle
     from ballsurvey.schema import RESULT_VARIABLES
     from ballsurvey.units import StepPlan, launch_state
 
     ball = Ball.paper()
     rng = np.random.default_rng(3)
     n = 400
-    y0 = launch_state(rng.uniform(-20, 89.9, n), rng.uniform(-2, 2, n) * (rng.random(n) < 0.5),
-                      rng.uniform(-12, 12, n), rng.uniform(-8, 8, n), ball.time_unit)
+    th0, td0 = rng.uniform(-20, 89.9, n), rng.uniform(-2, 2, n) * (rng.random(n) < 0.5)
+    cd0, pd0 = rng.uniform(-12, 12, n), rng.uniform(-8, 8, n)
+    # the last on a steady circle: the quadrature leaves it to the fixed-frame integrator
+    c, A, B = ball.nondim_params()
+    tu = ball.time_unit
+    th0[-1], td0[-1], cd0[-1] = 25.0, 0.0, 2.0 / tu
+    pd0[-1] = spin_for_circle(math.radians(25.0), 2.0, c, A, B) / tu
+    y0 = launch_state(th0, td0, cd0, pd0, tu)
     params = np.repeat(ball.nondim_params()[:, None], n, 1)
     res = run_launches(y0, params, StepPlan(20.0, 1e-3, ball.time_unit), "quadrature", cycles=2)
     every = classify(res, ball.flat_face_theta_rad)

@@ -24,13 +24,13 @@ cluster at the turning points, where the tilt's approach to the vertical makes t
 sharp feature), N = 16, 32, ..., 512, nested (each level reuses the last's points) until the period
 and the turn of two successive levels agree to `QUAD_RTOL` and `TURN_TOL` (relative; absolute in
 rad for a turn under 1 rad; no tighter than F's own rounding allows: `NOISE_FACTOR`); not converged
-at 512: left to the integrator. Each level's new points take their sines and cosines first, then
-their rates in a loop free of calls, which runs in SIMD lanes (as does the path's per-point
-algebra); the numbers are those of one point at a time. The period and turn are the last
-level's; the path is taken at the level before (its period and turn agree with the last's to
-those tolerances): there the cumulative integrals (Chebyshev integration matrix) give, at every
-point, the time, the heading chi (from chidot) and G's position (from its velocity, in the heading
-frame turned by chi).
+at 512: left to the integrator. Each level's new points take their rates in a loop free of
+calls, which runs in SIMD lanes (as does the path's per-point algebra: sines, cosines and
+arctangents in those loops are `trig`'s, plain arithmetic); the numbers are those of one point
+at a time. The period and turn are the last level's; the path is taken at the level before (its
+period and turn agree with the last's to those tolerances): there the cumulative integrals
+(Chebyshev integration matrix) give, at every point, the time, the heading chi (from chidot)
+and G's position (from its velocity, in the heading frame turned by chi).
 
 From them, per launch, the observer's slots (`observer.SLOTS`) are filled as the stepping observer
 would fill them after the same number of theta maxima, so the one labeller (`labels.label_fields`)
@@ -63,6 +63,7 @@ from numba import uintp
 from .._jit import njit
 from ..physics.euler import accelerations, heading_velocity, jellett, kinetic, normal_force, routh
 from . import observer as ob
+from .trig import atan2, sincos, sincos_shift  # by name: `integrate.cuda.device_twin`
 
 jit = njit(cache=True, nogil=True, error_model="numpy")  # stamped cache: _jit.py
 #: functions that take arrays, called per launch: inlined in numba's IR, so that passing an
@@ -343,6 +344,7 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
     m, h = 0.5 * (hi + lo), 0.5 * (hi - lo)
     if not h > 0.0:
         return UNCONVERGED
+    s_m, c_m = math.sin(m), math.cos(m)  # theta = m + h sin s: `sincos_shift`
     # --- nested Clenshaw-Curtis levels until period and turn converge --------------------------
     per_prev, turn_prev = math.nan, math.nan
     level = -1
@@ -359,18 +361,19 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
             first, step, count = stride, stride, n - 1
         else:  # the points between the last level's
             first, step, count = stride, 2 * stride, n // 2
-        # the new interior points: their sines and cosines, then their rates in a loop free of
-        # calls (SIMD lanes), in node's rows; F must be positive at each. (Indices unsigned
+        # the new interior points' rates, in a loop free of calls (SIMD lanes; sines and
+        # cosines by `trig`), in node's rows; F must be positive at each. (Indices unsigned
         # here and below, `uintp`: numba adds no negative-index wraparound to them, which would
         # turn the loops' loads into gathers or keep them from vectorising.)
         first, step = uintp(first), uintp(step)
-        for p in range(uintp(count)):
+        for p in range(uintp(count)):  # gathered first: strided loads keep a loop scalar
             k = first + p * step
-            th = m + h * sin_s[k]
-            node[_WS, p], node[_WC, p] = math.sin(th), math.cos(th)
+            node[_WS, p] = h * sin_s[k]
             node[_WH, p] = h * cos_s[k]
         for p in range(uintp(count)):
-            chd, phd, f = _rates_at(node[_WS, p], node[_WC, p], E, J, R, c, A, B)
+            sth, cth = sincos_shift(s_m, c_m, node[_WS, p])
+            node[_WS, p], node[_WC, p] = sth, cth
+            chd, phd, f = _rates_at(sth, cth, E, J, R, c, A, B)
             thd = math.sqrt(f)
             node[_WCHD, p], node[_WPHD, p], node[_WF, p] = chd, phd, f
             node[_WTHD, p], node[_WTAU, p] = thd, node[_WH, p] / thd
@@ -436,7 +439,7 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
     off = offsets[level]
     _cumulate(qm, off, n, node, _CHD_TAU, _CHI)
     for j in range(un + 1):
-        cc, sc = math.cos(node[_CHI, j]), math.sin(node[_CHI, j])
+        sc, cc = sincos(node[_CHI, j])
         node[_FX, j] = node[_U, j] * cc * node[_TAU_C, j] - node[_W_TAU, j] * sc
         node[_FY, j] = node[_U, j] * sc * node[_TAU_C, j] + node[_W_TAU, j] * cc
     _cumulate(qm, off, n, node, _FX, _X)
@@ -448,13 +451,14 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
     # the path heading's total absolute change over the half cycle: its variation over the
     # points, psi = chi + the velocity's direction in the heading frame (exact where psi is
     # monotone between points; a quadrature of |psidot| would miss the spikes at a cusp)
+    for j in range(un + 1):  # psi at each point (rows _FX, _FY are free until the radii)
+        node[_FX, j] = node[_CHI, j] + atan2(node[_W, j], node[_U, j])
+    for j in range(uintp(1), un + 1):  # |its change| from each point to the next, in lanes
+        dpsi = node[_FX, j] - node[_FX, j - uintp(1)]
+        node[_FY, j] = abs(dpsi - 2.0 * math.pi * math.floor((dpsi + math.pi) / (2.0 * math.pi)))
     t_turn = 0.0
-    psi_prev = node[_CHI, 0] + math.atan2(node[_W, 0], node[_U, 0])
     for j in range(uintp(1), un + 1):
-        psi = node[_CHI, j] + math.atan2(node[_W, j], node[_U, j])
-        dpsi = psi - psi_prev
-        t_turn += abs(dpsi - 2.0 * math.pi * math.floor((dpsi + math.pi) / (2.0 * math.pi)))
-        psi_prev = psi
+        t_turn += node[_FY, j]
     # --- the orbit: G at theta_max, the next minimum (the mirror of the first), the centre -----
     xm, ym = node[_X, n], node[_Y, n]
     ex, ey = math.cos(node[_CHI, n]), math.sin(node[_CHI, n])
