@@ -3,8 +3,9 @@
 
 Each row is the same kernel with the observer, or a part of it, taken out: the observer module's
 source is executed again with a physics function replaced by a constant stub (so the part and what
-only it feeds are gone), and the kernel compiled against that copy, in memory (numba's on-disk
-cache is never touched: a stub must not reach a real run). The rows are timed in turns, best of
+only it feeds are gone), and the kernel compiled against that copy's block functions
+(`block_open`, `block_record`, `block_close`), in memory (numba's on-disk cache is never touched:
+a stub must not reach a real run). The rows are timed in turns, best of
 `--repeats`, so the machine's noise hits them alike. The figures are costs above the bare kernel
 (no observer), in per cent of its time. The stubbed rows compute wrong fields: they are for timing
 only. Needs only ballsurvey:
@@ -46,9 +47,9 @@ def _no_accelerations(sth, cth, thd, chd, phd, c, A, B):
 
 
 @numba.njit
-def _no_record(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, chdd, phdd,
-               c, A, B, psid_in=np.nan, fric_in=np.nan, normal_in=np.nan):
-    obs[0, i] = t  # one store, so the sample loop is kept
+def _no_record(lanes, obs, alive, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, c, A, B):
+    for i in range(x.shape[0]):
+        obs[0, i] = t  # one store a launch and sample, so the sample loop is kept
 
 
 def _module(source: str, name: str, **stubs) -> types.ModuleType:
@@ -61,32 +62,35 @@ def _module(source: str, name: str, **stubs) -> types.ModuleType:
     return mod
 
 
-def _kernel(record, done, **stubs):
-    """The RK4 kernel as `ensemble.make_kernels` binds it (numba inlines `record`), in memory."""
-    kernel = _module(kernel_module_source("rk4"), "observer_cost_kernel", **stubs)
-    kernel.record, kernel.done = inlined(record), done
+def _kernel(block_open, block_record, block_close, done):
+    """The RK4 kernel as `ensemble.make_kernels` binds it (numba inlines the block functions),
+    in memory."""
+    kernel = _module(kernel_module_source("rk4"), "observer_cost_kernel")
+    kernel.block_open, kernel.block_record = inlined(block_open), inlined(block_record)
+    kernel.block_close, kernel.done = inlined(block_close), done
     return kernel.run_parallel
 
 
 def _observer(**stubs):
     obs = _module(inspect.getsource(observer_module), "observer_cost_observer", **stubs)
-    return obs.observe, obs.cycles_done
+    return obs.block_open, obs.block_record, obs.block_close, obs.cycles_done
 
 
 def variants() -> dict:
     """name -> (kernel, slots); the first is the bare kernel."""
     full = _observer()
     no_invariants = _observer(energy=_zero, jellett=_zero, routh=_zero)
-    physics_free = _observer(energy=_zero, jellett=_zero, routh=_zero, normal_force=_one)
+    physics_free = _observer(energy=_zero, jellett=_zero, routh=_zero, normal_force=_one,
+                             accelerations=_no_accelerations)
     return {
         "bare kernel (no observer)": (_kernel(*full), 0),
         "observer, all of it": (_kernel(*full), N_OBS),
         "  without the sample's accelerations": (
-            _kernel(*full, accelerations=_no_accelerations), N_OBS),
+            _kernel(*_observer(accelerations=_no_accelerations)), N_OBS),
         "  without the invariants (E, J, R)": (_kernel(*no_invariants), N_OBS),
-        "  without invariants, normal force, accelerations": (
-            _kernel(*physics_free, accelerations=_no_accelerations), N_OBS),
-        "  one store a sample (the sample loop alone)": (_kernel(_no_record, full[1]), N_OBS),
+        "  without invariants, normal force, accelerations": (_kernel(*physics_free), N_OBS),
+        "  one store a sample (the sample loop alone)": (
+            _kernel(full[0], _no_record, full[2], full[3]), N_OBS),
     }
 
 

@@ -1,6 +1,7 @@
 """The ensemble kernel: convergence orders, invariants' drift, agreement with independent steppers,
 determinism under chunking and threading, and the flags for blown-up and singular launches."""
 import math
+from types import SimpleNamespace
 
 import numba
 import numpy as np
@@ -161,7 +162,9 @@ def test_tilt_reaching_90_deg_is_flagged_singular():
 def test_period_mode_refill_matches_the_block_kernel_bit_for_bit():
     """Period mode refills a lane as soon as its launch has its cycles; per launch the arithmetic
     is the block kernel's, so the observer record, outcome and stop time are the same bits, for
-    any block size and thread count."""
+    any block size and thread count. The refill kernel records one launch at a time
+    (`observe`), the block kernel a block at once (`block_record`, in chunks of CHUNK
+    launches: a block of 150 holds three)."""
     from ballsurvey.classify.observer import N_OBS
     from ballsurvey.compose import OBSERVER, stop_target
     from ballsurvey.units import launch_state
@@ -183,6 +186,10 @@ def test_period_mode_refill_matches_the_block_kernel_bit_for_bit():
     par(y0, p, dt, steps, 16, 1e-3, True, 4, obs, np.full((0, 12, n), np.nan), 1,
         np.empty_like(y0), stop, out, t_stop)
     assert (out != 0).any() and (out == 0).any()  # both kinds of ending are exercised
-    for r in (refill, serial):
+    wide = SimpleNamespace(obs=np.full((N_OBS, n), np.nan), outcome=np.zeros(n, np.int8),
+                           t_stop=np.full(n, np.nan))
+    par(y0, p, dt, steps, 150, 1e-3, True, 4, wide.obs, np.full((0, 12, n), np.nan), 1,
+        np.empty_like(y0), stop, wide.outcome, wide.t_stop)
+    for r in (refill, serial, wide):
         assert np.array_equal(r.obs, obs, equal_nan=True)
         assert np.array_equal(r.outcome, out) and np.array_equal(r.t_stop, t_stop, equal_nan=True)

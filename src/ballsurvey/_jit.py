@@ -37,6 +37,7 @@ Old generated kernel modules stay in the cache directory (small text files; dele
 from __future__ import annotations
 
 import hashlib
+import math
 import platform
 from pathlib import Path
 
@@ -134,3 +135,27 @@ def njit(*, cache: bool = False, **options):
         return disp
 
     return decorate
+
+
+@nb.extending.intrinsic
+def _llvm_sqrt(typingctx, x):
+    sig = nb.types.float64(nb.types.float64)
+
+    def codegen(context, builder, signature, args):
+        fn = builder.module.declare_intrinsic("llvm.sqrt", [args[0].type])
+        return builder.call(fn, args)
+
+    return sig, codegen
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def sqrt(x):
+    """math.sqrt of a float64 as LLVM's sqrt instruction: the same correctly rounded value (NaN
+    for x < 0, as the processor's square root gives it), but no libm call that may set errno,
+    which LLVM must keep as a call wherever it cannot prove x >= 0, and which stops a loop over
+    launches from vectorising. On a GPU (`integrate/cuda.py: device_twin`) it is math.sqrt, the
+    same correctly rounded value."""
+    return _llvm_sqrt(float(x))
+
+
+sqrt.device_form = math.sqrt

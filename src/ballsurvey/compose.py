@@ -27,6 +27,7 @@ import numpy as np
 
 from .ball import flat_face_theta_of, nondim_params_of
 from .classify import cycle
+from .classify import observer as ob
 from .classify.labels import CODE, Thresholds, label_fields
 from .classify.observer import N_OBS, O_DE, O_E0, O_TH_MAX, O_TH_MIN, cycles_done, observe
 from .classify.step_observer import observe_start, observe_step
@@ -59,7 +60,8 @@ def in_line(times: dict) -> float:
     return sum(v for k, v in times.items() if k != BESIDE)
 
 #: the classifier's streaming observer, as the integrators take it
-OBSERVER = Observer(record=observe, done=cycles_done)
+OBSERVER = Observer(record=observe, done=cycles_done, block_open=ob.block_open,
+                    block_record=ob.block_record, block_close=ob.block_close)
 #: the same record from an adaptive integration's accepted steps (the map's dop853 on SIMD lanes)
 STEP_OBSERVER = StepObserver(start=observe_start, step=observe_step, done=cycles_done)
 #: methods for one trajectory (`run_trajectory`, `simulate`)

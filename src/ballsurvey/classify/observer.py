@@ -36,7 +36,12 @@ Over one theta cycle the reduced state (theta, thetadot, chidot, phidot) returns
 path repeats rotated by the change of chi over the cycle: the net turn per cycle is
 (chi_last - chi_first) / (cycles), with no atan2 in the hot loop.
 
-All non-dimensional. Used by the ensemble kernel and, on stored samples, by `observe_samples`.
+`observe` takes one launch's sample; `block_record` a whole block's (the fixed-step ensemble
+kernel's), with the same arithmetic in the same order, so each launch's slots are the same to
+the bit: the per-sample quantities and accumulators in one vectorised pass over the launches, the
+events (rare: two a theta cycle) launch by launch.
+
+All non-dimensional. Used by the ensemble kernels and, on stored samples, by `observe_samples`.
 """
 from __future__ import annotations
 
@@ -81,6 +86,9 @@ N_OBS = len(SLOTS)
  O_P_AX, O_P_AY, O_P_EZDD, O_P_SPEED) = range(N_OBS)
 
 jit = njit(cache=True, nogil=True, error_model="numpy")  # stamped cache: _jit.py
+#: for the per-sample arithmetic: numba inlines it into every caller, so that `record_block`'s
+#: pass over the launches is one call-free loop (LLVM's inliner leaves it a call there)
+jit_inline = njit(cache=True, nogil=True, error_model="numpy", inline="always")
 
 
 @jit
@@ -290,14 +298,39 @@ def on_maximum(obs, i, t_ev, th_ev, chi_ev, x_ev, y_ev, psi_ev, speed_ev, psid, 
     obs[O_A_RMAX, i] = -math.inf
 
 
-@jit
-def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, chdd, phdd, c, A, B,
-            psid_in=math.nan, fric_in=math.nan, normal_in=math.nan):
-    """Update launch i's slots with one sample (time t, step dt since the previous sample).
+#: the slots every sample after the first updates before its events: the running extrema, drift
+#: maxima and per-cycle sums (`_accumulated`'s order)
+ACCUMULATED = (O_TH_MIN, O_TH_MAX, O_DE, O_DJ, O_DR, O_FRIC, O_NMIN,
+               O_A_PSID, O_A_TURN, O_A_RAW, O_A_VMIN, O_A_VINT, O_A_QUART, O_A_RMIN, O_A_RMAX,
+               O_A_NSAMP, O_TH_STEP)
+N_ACC = len(ACCUMULATED)
+#: the slots that hold the previous sample, which the next one's accumulators and events read
+PREVIOUS = (O_P_THD, O_P_T, O_P_CHI, O_P_X, O_P_Y, O_P_QUAD, O_P_STH, O_P_CTH, O_P_CHD, O_P_U,
+            O_P_W, O_P_PSID, O_P_PHD, O_P_TH)
 
-    psid_in, fric_in, normal_in: the path's heading rate, |F_h|/N and N/(M g) computed without
-    the Euler chart (fixed-frame integration near theta = 90 deg); NaN: compute them here."""
-    # --- speeds in the frame turning with the heading chi (Eqs. 6-7) and their rates -----------
+
+@jit_inline
+def _slots(a, i, rows):
+    """(a[rows[0], i], ..., a[rows[16], i]): 17 slots of column i, in the order of rows."""
+    return (a[rows[0], i], a[rows[1], i], a[rows[2], i], a[rows[3], i], a[rows[4], i],
+            a[rows[5], i], a[rows[6], i], a[rows[7], i], a[rows[8], i], a[rows[9], i],
+            a[rows[10], i], a[rows[11], i], a[rows[12], i], a[rows[13], i], a[rows[14], i],
+            a[rows[15], i], a[rows[16], i])
+
+
+@jit_inline
+def _copy_slots(dst, rows_dst, i_dst, src, rows_src, i_src):
+    """dst[rows_dst[q], i_dst] = src[rows_src[q], i_src] for each q."""
+    for q in range(len(rows_dst)):
+        dst[rows_dst[q], i_dst] = src[rows_src[q], i_src]
+
+
+@jit_inline
+def _sample(sth, cth, thd, chd, phd, thdd, chdd, phdd, c, A, B, psid_in, fric_in, normal_in):
+    """One sample's derived quantities: (u, w, speed, psid, fric, normal, e, jel, rou, quad),
+    G's velocity in the frame turning with the heading chi (Eqs. 6-7) and its speed, the path's
+    heading rate, friction demand |F_h|/N and N/(M g) (psid_in, fric_in, normal_in where those
+    are finite), the three invariants and the quadrant of (u, w). Pure arithmetic, no calls."""
     u, w = heading_velocity(sth, cth, thd, chd, phd, c)
     v2 = u * u + w * w
     speed = math.sqrt(v2)
@@ -313,76 +346,223 @@ def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, 
         normal = normal_force(sth, cth, thd, thdd, c)  # N / (M g), Eq. (20)
         fric = (math.sqrt(ah_par * ah_par + ah_perp * ah_perp) / normal if normal > 0.0
                 else math.inf)
-    # --- invariants -----------------------------------------------------------------------------
     e = energy(sth, cth, thd, chd, phd, c, A, B)
     jel = jellett(sth, cth, thd, chd, phd, c, A, B)
     rou = routh(sth, cth, thd, chd, phd, c, A, B)
-    quad = _quadrant(u, w)
+    return u, w, speed, psid, fric, normal, e, jel, rou, _quadrant(u, w)
+
+
+@jit_inline
+def _accumulated(acc, e0, j0, r0, p_quad, rc_x, rc_y, p_th, dt, x, y, th, e, jel, rou, fric,
+                 normal, psid, speed, quad):
+    """The `ACCUMULATED` slots acc after one more sample (not the first; dt since the last):
+    branch-free arithmetic on values, so that a loop over launches vectorises. e0, j0, r0,
+    p_quad, rc_x, rc_y, p_th: the launch's E0, J0, R0, P_QUAD, RC_X, RC_Y and P_TH slots."""
+    (th_min, th_max, de, dj, dr, fric_max, n_min, a_psid, a_turn, a_raw, a_vmin, a_vint,
+     quart, r_min, r_max, nsamp, th_step) = acc
+    # per-cycle accumulators (rectangle rule over the previous interval)
+    dq = quad - p_quad
+    if dq > 2.0:
+        dq -= 4.0
+    elif dq < -2.0:
+        dq += 4.0
+    if abs(dq) < 2.0:  # a jump of two quadrants passes through v = 0: a cusp, not a turn
+        quart += dq
+    # distance from the orbit centre (NaN until it is known: min/max then stay NaN-free);
+    # a square root, not hypot: a library call on every sample (measured: 18 % of the
+    # observer's cost), and these distances are far from overflow
+    rx, ry = x - rc_x, y - rc_y
+    r = math.sqrt(rx * rx + ry * ry)
+    if r < r_min:
+        r_min = r
+    if r > r_max:
+        r_max = r
+    return (min(th_min, th), max(th_max, th), max(de, abs(e - e0)), max(dj, abs(jel - j0)),
+            max(dr, abs(rou - r0)), max(fric_max, fric), min(n_min, normal),
+            max(a_psid, abs(psid)), a_turn + abs(psid) * dt, a_raw + psid * dt,
+            min(a_vmin, speed), a_vint + speed * dt, quart, r_min, r_max, nsamp + 1.0,
+            max(th_step, abs(th - p_th)))
+
+
+@jit
+def _events(obs, i, t, x, y, sth, cth, chi, thd, chd, phd, u, w, psid, speed, c, A, B):
+    """The theta extremum between launch i's previous sample (its P_ slots) and this one, if
+    thetadot changed sign: located, and handed to `on_minimum` or `on_maximum`, which read (and
+    reset) the accumulators this sample has already updated."""
+    # --- theta minimum: thetadot turns from - to + (where the path turns: a corner) -----------
+    if obs[O_P_THD, i] < 0.0 and thd >= 0.0:
+        _, _, th_ev, _, xm, ym, _, _ = _locate(obs, i, t, x, y, sth, cth, chi, thd, chd,
+                                               phd, u, w, psid, c, A, B)
+        on_minimum(obs, i, th_ev, xm, ym)
+    # --- theta maximum: thetadot turns from + to - --------------------------------------------
+    # (one between the launch and the first sample after it is not a cycle's start: the
+    # launch's own sample can sit within 1e-7 deg of the vertical, where its Euler rates,
+    # and so the path's heading read there, are rounding; the first cycle starts at the next)
+    if obs[O_P_THD, i] > 0.0 and thd <= 0.0:
+        _, t_ev, th_ev, chi_ev, x_ev, y_ev, psi_ev, speed_ev = _locate(
+            obs, i, t, x, y, sth, cth, chi, thd, chd, phd, u, w, psid, c, A, B)
+        if obs[O_NMAX, i] > 0.0 or obs[O_A_NSAMP, i] > 1.0:
+            on_maximum(obs, i, t_ev, th_ev, chi_ev, x_ev, y_ev, psi_ev, speed_ev, psid,
+                       speed)
+        else:
+            obs[O_TH_MAX, i] = max(obs[O_TH_MAX, i], th_ev)
+
+
+@jit
+def observe(obs, i, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, thdd, chdd, phdd, c, A, B,
+            psid_in=math.nan, fric_in=math.nan, normal_in=math.nan):
+    """Update launch i's slots with one sample (time t, step dt since the previous sample).
+
+    psid_in, fric_in, normal_in: the path's heading rate, |F_h|/N and N/(M g) computed without
+    the Euler chart (fixed-frame integration near theta = 90 deg); NaN: compute them here."""
+    u, w, speed, psid, fric, normal, e, jel, rou, quad = _sample(
+        sth, cth, thd, chd, phd, thdd, chdd, phdd, c, A, B, psid_in, fric_in, normal_in)
     if first:
         start_record(obs, i, th, e, jel, rou, fric, normal, speed, thd, thdd)
     else:
-        obs[O_TH_MIN, i] = min(obs[O_TH_MIN, i], th)
-        obs[O_TH_MAX, i] = max(obs[O_TH_MAX, i], th)
-        obs[O_DE, i] = max(obs[O_DE, i], abs(e - obs[O_E0, i]))
-        obs[O_DJ, i] = max(obs[O_DJ, i], abs(jel - obs[O_J0, i]))
-        obs[O_DR, i] = max(obs[O_DR, i], abs(rou - obs[O_R0, i]))
-        obs[O_FRIC, i] = max(obs[O_FRIC, i], fric)
-        obs[O_NMIN, i] = min(obs[O_NMIN, i], normal)
-        # per-cycle accumulators (rectangle rule over the previous interval)
-        obs[O_A_PSID, i] = max(obs[O_A_PSID, i], abs(psid))
-        obs[O_A_TURN, i] += abs(psid) * dt
-        obs[O_A_RAW, i] += psid * dt
-        obs[O_A_VMIN, i] = min(obs[O_A_VMIN, i], speed)
-        obs[O_A_VINT, i] += speed * dt
-        dq = quad - obs[O_P_QUAD, i]
-        if dq > 2.0:
-            dq -= 4.0
-        elif dq < -2.0:
-            dq += 4.0
-        if abs(dq) < 2.0:  # a jump of two quadrants passes through v = 0: a cusp, not a turn
-            obs[O_A_QUART, i] += dq
-        # distance from the orbit centre (NaN until it is known: min/max then stay NaN-free);
-        # a square root, not hypot: a library call on every sample (measured: 18 % of the
-        # observer's cost), and these distances are far from overflow
-        rx, ry = x - obs[O_RC_X, i], y - obs[O_RC_Y, i]
-        r = math.sqrt(rx * rx + ry * ry)
-        if r < obs[O_A_RMIN, i]:
-            obs[O_A_RMIN, i] = r
-        if r > obs[O_A_RMAX, i]:
-            obs[O_A_RMAX, i] = r
-        # --- theta minimum: thetadot turns from - to + (where the path turns: a corner) -------
-        obs[O_A_NSAMP, i] += 1.0
-        obs[O_TH_STEP, i] = max(obs[O_TH_STEP, i], abs(th - obs[O_P_TH, i]))
-        if obs[O_P_THD, i] < 0.0 and thd >= 0.0:
-            _, _, th_ev, _, xm, ym, _, _ = _locate(obs, i, t, x, y, sth, cth, chi, thd, chd,
-                                                   phd, u, w, psid, c, A, B)
-            on_minimum(obs, i, th_ev, xm, ym)
-        # --- theta maximum: thetadot turns from + to - ----------------------------------------
-        # (one between the launch and the first sample after it is not a cycle's start: the
-        # launch's own sample can sit within 1e-7 deg of the vertical, where its Euler rates,
-        # and so the path's heading read there, are rounding; the first cycle starts at the next)
-        if obs[O_P_THD, i] > 0.0 and thd <= 0.0:
-            _, t_ev, th_ev, chi_ev, x_ev, y_ev, psi_ev, speed_ev = _locate(
-                obs, i, t, x, y, sth, cth, chi, thd, chd, phd, u, w, psid, c, A, B)
-            if obs[O_NMAX, i] > 0.0 or obs[O_A_NSAMP, i] > 1.0:
-                on_maximum(obs, i, t_ev, th_ev, chi_ev, x_ev, y_ev, psi_ev, speed_ev, psid,
-                           speed)
-            else:
-                obs[O_TH_MAX, i] = max(obs[O_TH_MAX, i], th_ev)
-    obs[O_P_THD, i] = thd
-    obs[O_P_T, i] = t
-    obs[O_P_CHI, i] = chi
-    obs[O_P_X, i] = x
-    obs[O_P_Y, i] = y
-    obs[O_P_QUAD, i] = quad
-    obs[O_P_STH, i] = sth
-    obs[O_P_CTH, i] = cth
-    obs[O_P_CHD, i] = chd
-    obs[O_P_U, i] = u
-    obs[O_P_W, i] = w
-    obs[O_P_PSID, i] = psid
-    obs[O_P_PHD, i] = phd
-    obs[O_P_TH, i] = th
+        acc = _accumulated(_slots(obs, i, ACCUMULATED), obs[O_E0, i], obs[O_J0, i],
+                           obs[O_R0, i], obs[O_P_QUAD, i], obs[O_RC_X, i], obs[O_RC_Y, i],
+                           obs[O_P_TH, i], dt, x, y, th, e, jel, rou, fric, normal, psid, speed,
+                           quad)
+        for q in range(N_ACC):
+            obs[ACCUMULATED[q], i] = acc[q]
+        _events(obs, i, t, x, y, sth, cth, chi, thd, chd, phd, u, w, psid, speed, c, A, B)
+    (obs[O_P_THD, i], obs[O_P_T, i], obs[O_P_CHI, i], obs[O_P_X, i], obs[O_P_Y, i],
+     obs[O_P_QUAD, i], obs[O_P_STH, i], obs[O_P_CTH, i], obs[O_P_CHD, i], obs[O_P_U, i],
+     obs[O_P_W, i], obs[O_P_PSID, i], obs[O_P_PHD, i], obs[O_P_TH, i]) = (
+        thd, t, chi, x, y, quad, sth, cth, chd, u, w, psid, phd, th)
+
+
+# --- a block of launches at once (the fixed-step ensemble kernel) --------------------------------
+#: launches a chunk of `block_open`'s lane state holds: its rows are this long, a constant, so
+#: that LLVM knows where each row lies and vectorises a pass over the launches without checking
+#: each row it writes against every other array it reads (too many checks: it would not)
+CHUNK = 64
+#: rows of a chunk of lane state: the `ACCUMULATED` slots (rows 0..N_ACC-1, same order), the
+#: `PREVIOUS` slots (same order), the PREVIOUS slots as the sample before this one left them
+#: (for the event pass), this sample's speed, and 1.0 while the launch is alive (0.0 after:
+#: its slots are then in obs)
+L_ACC = tuple(range(N_ACC))
+L_PREV = tuple(range(N_ACC, N_ACC + len(PREVIOUS)))
+L_BEFORE = tuple(range(N_ACC + len(PREVIOUS), N_ACC + 2 * len(PREVIOUS)))
+(L_P_THD, L_P_T, L_P_CHI, L_P_X, L_P_Y, L_P_QUAD, L_P_STH, L_P_CTH, L_P_CHD, L_P_U,
+ L_P_W, L_P_PSID, L_P_PHD, L_P_TH) = L_PREV
+L_B_THD = L_BEFORE[0]
+L_SPEED = N_ACC + 2 * len(PREVIOUS)
+L_ALIVE = L_SPEED + 1
+N_LANE_ROWS = L_ALIVE + 1
+
+
+@jit
+def block_open(obs):
+    """The lane state of a block of launches whose slots are obs's columns: for `block_record`,
+    which keeps the slots every sample touches there while their launches are alive, and
+    `block_close`, which writes them back. None alive yet."""
+    m = obs.shape[1]
+    lanes = np.empty(((m + CHUNK - 1) // CHUNK, N_LANE_ROWS, CHUNK))
+    lanes[:, L_ALIVE, :] = 0.0
+    return lanes
+
+
+@jit
+def _lane_out(lanes, obs, alive, m):
+    """Each of the m launches that the lane state holds alive and `alive` does not: its slots
+    written from the lane state to obs, where they stay."""
+    for i in range(m):
+        ch, j = divmod(i, CHUNK)
+        if lanes[ch, L_ALIVE, j] == 1.0 and not alive[i]:
+            lane = lanes[ch]
+            _copy_slots(obs, ACCUMULATED, i, lane, L_ACC, j)
+            _copy_slots(obs, PREVIOUS, i, lane, L_PREV, j)
+            lanes[ch, L_ALIVE, j] = 0.0
+
+
+@jit
+def block_close(lanes, obs):
+    """Every launch's slots in obs: those still in the lane state written back."""
+    m = obs.shape[1]
+    _lane_out(lanes, obs, np.zeros(m, dtype=np.bool_), m)
+
+
+@jit
+def block_record(lanes, obs, alive, first, t, dt, x, y, th, sth, cth, chi, thd, chd, phd, c, A,
+                 B):
+    """`observe` for a block of launches at once: one sample (time t, dt since the last) of
+    every launch i with alive[i], its state in the rows x[i], y[i], ... and its parameters in
+    c[i], A[i], B[i]; lanes: `block_open(obs)`. After `block_close`, each launch's slots are as
+    `observe` leaves them, bit for bit.
+
+    The slots that every sample reads and writes live in the lane state, CHUNK launches a row:
+    one pass over a chunk's launches does the per-sample work that has no branch of consequence
+    (the sample's quantities, the accumulators, the previous sample's slots) with no call, and
+    LLVM vectorises it; then, for the few launches whose thetadot changed sign, the event work
+    (`_events`, which reads and resets those accumulators) on their column of obs, launch by
+    launch."""
+    m = x.shape[0]
+    if first:
+        for i in range(m):
+            if alive[i]:
+                thdd, chdd, phdd = accelerations(sth[i], cth[i], thd[i], chd[i], phd[i], c[i],
+                                                 A[i], B[i])
+                observe(obs, i, True, t, dt, x[i], y[i], th[i], sth[i], cth[i], chi[i], thd[i],
+                        chd[i], phd[i], thdd, chdd, phdd, c[i], A[i], B[i])
+                ch, j = divmod(i, CHUNK)
+                lane = lanes[ch]
+                _copy_slots(lane, L_ACC, j, obs, ACCUMULATED, i)
+                _copy_slots(lane, L_PREV, j, obs, PREVIOUS, i)
+                lanes[ch, L_ALIVE, j] = 1.0
+        return
+    n_out = 0  # launches stopped since the last sample
+    for ch in range(lanes.shape[0]):
+        lo = ch * CHUNK
+        for j in range(min(CHUNK, m - lo)):
+            n_out += np.int64(lanes[ch, L_ALIVE, j] > np.float64(alive[np.uint64(lo + j)]))
+    if n_out > 0:
+        _lane_out(lanes, obs, alive, m)
+    for ch in range(lanes.shape[0]):
+        lane = lanes[ch]
+        lo = ch * CHUNK
+        n_events = 0
+        for j in range(min(CHUNK, m - lo)):
+            # unsigned: numba then adds no check for a negative index, and LLVM sees the rows
+            # read at consecutive addresses (not gathered)
+            i = np.uint64(lo + j)
+            thdd, chdd, phdd = accelerations(sth[i], cth[i], thd[i], chd[i], phd[i], c[i], A[i],
+                                             B[i])
+            u, w, speed, psid, fric, normal, e, jel, rou, quad = _sample(
+                sth[i], cth[i], thd[i], chd[i], phd[i], thdd, chdd, phdd, c[i], A[i], B[i],
+                math.nan, math.nan, math.nan)
+            (lane[0, j], lane[1, j], lane[2, j], lane[3, j], lane[4, j], lane[5, j], lane[6, j],
+             lane[7, j], lane[8, j], lane[9, j], lane[10, j], lane[11, j], lane[12, j],
+             lane[13, j], lane[14, j], lane[15, j], lane[16, j]) = _accumulated(
+                _slots(lane, j, L_ACC), obs[O_E0, i], obs[O_J0, i], obs[O_R0, i],
+                lane[L_P_QUAD, j], obs[O_RC_X, i], obs[O_RC_Y, i], lane[L_P_TH, j], dt, x[i],
+                y[i], th[i], e, jel, rou, fric, normal, psid, speed, quad)
+            for q in range(len(PREVIOUS)):
+                lane[L_BEFORE[q], j] = lane[L_PREV[q], j]
+            (lane[L_P_THD, j], lane[L_P_T, j], lane[L_P_CHI, j], lane[L_P_X, j], lane[L_P_Y, j],
+             lane[L_P_QUAD, j], lane[L_P_STH, j], lane[L_P_CTH, j], lane[L_P_CHD, j],
+             lane[L_P_U, j], lane[L_P_W, j], lane[L_P_PSID, j], lane[L_P_PHD, j],
+             lane[L_P_TH, j]) = (thd[i], t, chi[i], x[i], y[i], quad, sth[i], cth[i], chd[i], u,
+                                 w, psid, phd[i], th[i])
+            lane[L_SPEED, j] = speed
+            # thetadot's sign changed, or one of them is zero, or their product underflows: the
+            # launches with an event and a few more (checked one by one below), none missed
+            n_events += np.int64(lane[L_B_THD, j] * thd[i] <= 0.0)
+        if n_events == 0:
+            continue
+        for j in range(min(CHUNK, m - lo)):
+            i = lo + j
+            b_thd = lane[L_B_THD, j]
+            if lane[L_ALIVE, j] == 1.0 and ((b_thd < 0.0 and thd[i] >= 0.0)
+                                            or (b_thd > 0.0 and thd[i] <= 0.0)):
+                # the event work on obs: this sample's accumulators, the previous sample
+                _copy_slots(obs, ACCUMULATED, i, lane, L_ACC, j)
+                _copy_slots(obs, PREVIOUS, i, lane, L_BEFORE, j)
+                _events(obs, i, t, x[i], y[i], sth[i], cth[i], chi[i], thd[i], chd[i], phd[i],
+                        lane[L_P_U, j], lane[L_P_W, j], lane[L_P_PSID, j], lane[L_SPEED, j],
+                        c[i], A[i], B[i])
+                _copy_slots(lane, L_ACC, j, obs, ACCUMULATED, i)
 
 
 @jit

@@ -1,18 +1,20 @@
 """Handing an observer to a kernel.
 
-The integrators in this package know nothing of what an observer computes. An observer is two
+The integrators in this package know nothing of what an observer computes. An observer is
 jitted functions (an `Observer`): `record(obs, i, first, t, dt, x, y, theta, sin theta, cos theta,
 chi, thetadot, chidot, phidot, thetaddot, chiddot, phiddot, c, A, B, psid, fric, normal)` updates
 launch i's column of `obs` with one sample (psid, fric, normal: the path's heading rate, |F_h|/N and
 N/(M g) computed without the Euler chart, or NaN), and `done(obs, i, target) -> bool` says when a
-launch may stop early (period mode). The layer above (`ballsurvey.compose`) hands one in.
+launch may stop early (period mode); the fixed-step block kernel feeds a whole block's sample at
+once to `block_record`, between `block_open` and `block_close` (`Observer`). The layer above
+(`ballsurvey.compose`) hands one in.
 
 numba caches a function only if everything it calls is known when it is compiled, and cannot cache
 one that takes functions as arguments. So a kernel module is a template whose module globals
-`record` and `done` are placeholders: `bind(name, source, observer)` writes the template with the
-observer's identity and the digest of its source into a module in the cache directory
+(`record`, `done`, ...) are placeholders: `bind(name, source, observer)` writes the template with
+the observer's identity and the digest of its source into a module in the cache directory
 ($BALLSURVEY_CACHE_DIR, default ~/.cache/ballsurvey), named by a hash of that text and of
-`_jit.SOURCE_DIGEST`, imports it and sets the two globals before anything is compiled. numba's
+`_jit.SOURCE_DIGEST`, imports it and sets the globals before anything is compiled. numba's
 on-disk cache then works across processes, and a change to the kernel, to the observer or to
 any physics either inlines gives a new module instead of stale machine code.
 """
@@ -32,10 +34,19 @@ from .._jit import SOURCE_DIGEST
 
 
 class Observer(NamedTuple):
-    """A streaming observer: `record` one sample, say when a launch is `done` (module docstring)."""
+    """A streaming observer: `record` one sample, say when a launch is `done` (module docstring);
+    for the fixed-step ensemble kernel, which samples a block of launches at once, also
+    `block_open(obs) -> lanes` (its working state for the launches whose slots are obs's
+    columns), `block_record(lanes, obs, alive, first, t, dt, x, y, theta, sin theta, cos theta,
+    chi, thetadot, chidot, phidot, c, A, B)` (`record` for every launch i with alive[i], its
+    state and parameters in 1-D arrays, one per variable, indexed by i; what `done` reads of obs
+    is current after it) and `block_close(lanes, obs)` (every column of obs complete)."""
 
     record: Callable
     done: Callable
+    block_open: Callable | None = None
+    block_record: Callable | None = None
+    block_close: Callable | None = None
 
 
 class StepObserver(NamedTuple):
@@ -70,7 +81,9 @@ def inlined(fn):
     """`fn` (a numba function) compiled again from its Python source for numba to inline into
     every caller's IR (`inline="always"`), as it does the fixed-frame right-hand side: LLVM's
     inliner finds the observer too big, and as a call it cost the RK4 kernel a tenth of the
-    observer's time (benchmarks/observer_cost.py; the same record bit for bit). Only the hot
+    observer's time (benchmarks/observer_cost.py; the same record bit for bit); inlined, the
+    block functions also show LLVM where their working arrays come from (allocated in the
+    kernel, rows of a constant length), which their vectorised loops need. Only the hot
     kernels take it (`bind(..., inline_record=True)`): the inlined body is compiled again at each
     call site, which doubled the adaptive fallback's first compilation (25 -> 48 s)."""
     import numba
@@ -82,19 +95,21 @@ def inlined(fn):
 def bind(name: str, source: str, observer: Observer | StepObserver | None, *,
          inline_record: bool = False):
     """The module of `source` (a template with a global for each of the observer's functions:
-    `record` and `done`, or `start`, `step` and `done`) bound to `observer` (None: a kernel with
-    no observer; its module is cached all the same). inline_record: numba inlines the observer's
-    functions other than `done` into the kernel (`inlined`)."""
+    `record`, `done` and the block functions, or `start`, `step` and `done`) bound to the
+    functions `observer` has (None: a kernel with no observer; its module is cached all the
+    same). inline_record: numba inlines the observer's functions other than `done` into the
+    kernel (`inlined`)."""
+    # the observer's functions by name (those it has)
+    fns = {} if observer is None else {k: f for k, f in observer._asdict().items()
+                                       if f is not None}
     if observer is None:
         text = source + "\n\n# no observer\n"
     else:
         if inline_record:
-            observer = observer._replace(**{k: inlined(getattr(observer, k))
-                                            for k in observer._fields if k != "done"})
+            fns = {k: f if k == "done" else inlined(f) for k, f in fns.items()}
         text = source + "\n\n# observer bound by ballsurvey.integrate.binding:\n" + "".join(
-            f"#   {k} = {_identity(getattr(observer, k))}"
-            f"{' (inlined)' if inline_record and k != 'done' else ''}\n"
-            for k in observer._fields)
+            f"#   {k} = {_identity(f)}{' (inlined)' if inline_record and k != 'done' else ''}\n"
+            for k, f in fns.items())
     digest = hashlib.sha256(f"{text}\0{SOURCE_DIGEST}".encode()).hexdigest()[:16]
     modname = f"ballsurvey_{name}_{digest}"
     if modname in _MODULES:
@@ -114,13 +129,11 @@ def bind(name: str, source: str, observer: Observer | StepObserver | None, *,
         mod = importlib.import_module(modname)
     except OSError:  # read-only home: compile in memory, without the on-disk cache
         mod = type(sys)(modname)
-        if observer is not None:
-            for k in observer._fields:
-                setattr(mod, k, getattr(observer, k))
+        for k, f in fns.items():
+            setattr(mod, k, f)
         exec(compile(text.replace("cache=True", "cache=False"), f"<{modname}>", "exec"),
              mod.__dict__)
-    if observer is not None:
-        for k in observer._fields:
-            setattr(mod, k, getattr(observer, k))
+    for k, f in fns.items():
+        setattr(mod, k, f)
     _MODULES[modname] = mod
     return mod

@@ -88,7 +88,8 @@ def cuda_module():
 
 def device_twin(fn, cuda, _memo=None):
     """A CUDA device function compiled from the Python source of a numba CPU function, with every
-    numba function it calls replaced by its own device twin (recursively)."""
+    numba function it calls replaced by its own device twin (recursively), or by the device form
+    it names (`device_form`: `_jit.sqrt`, whose CPU form is an LLVM intrinsic)."""
     memo = {} if _memo is None else _memo
     py = getattr(fn, "py_func", fn)
     if py in memo:
@@ -96,7 +97,9 @@ def device_twin(fn, cuda, _memo=None):
     env = dict(py.__globals__)
     for name in py.__code__.co_names:
         obj = env.get(name)
-        if hasattr(obj, "py_func"):  # a numba dispatcher: use its device twin
+        if hasattr(obj, "device_form"):
+            env[name] = obj.device_form
+        elif hasattr(obj, "py_func"):  # a numba dispatcher: use its device twin
             env[name] = device_twin(obj, cuda, memo)
     clone = types.FunctionType(py.__code__, env, py.__name__, py.__defaults__, py.__closure__)
     memo[py] = cuda.jit(device=True)(clone)

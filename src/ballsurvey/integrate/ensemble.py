@@ -10,8 +10,12 @@ the angles, so the right-hand side is pure arithmetic: no scalar library calls, 
 vectorisation (this numba has no SVML).
 
 The observer is handed in (`binding.Observer`: record a sample, say when a launch is done); the
-kernel knows nothing of what it computes. The kernel's own verdict on each launch (an outcome code
-of `outcome.py` and the time it stopped) is returned beside the observer's record.
+kernel knows nothing of what it computes. The block kernel hands it each sample of the whole block
+at once (`block_record`, with the state rows themselves), so that the observer can vectorise its
+own per-sample work over the launches as the step is (`classify/observer.py`); the period-mode
+kernel, whose lanes sample at their own counts, records launch by launch (`record`). The kernel's
+own verdict on each launch (an outcome code of `outcome.py` and the time it stopped) is returned
+beside the observer's record.
 
 The method is data: `make_kernels(method, observer)` writes the stage expressions from the Butcher
 coefficients into one kernel source (as scipy's rk.py keeps one stepper for every tableau) and
@@ -43,6 +47,7 @@ def run_block(y0, params, dt, n_steps, lo, hi, cos_min, observer_on, observe_eve
     alive = np.ones(m, dtype=np.bool_)
     n_obs = obs.shape[0]
     obs_l = np.full((n_obs, m), np.nan)
+    lanes = block_open(obs_l)
     status = np.zeros(m, dtype=np.int8)
     t_stop = np.full(m, np.nan)
     n_rec = traj.shape[0]
@@ -55,14 +60,11 @@ def run_block(y0, params, dt, n_steps, lo, hi, cos_min, observer_on, observe_eve
             for i in range(m):
 {record}
         if observer_on and (n % observe_every == 0 or n == n_steps):
-            for i in range(m):
-                if alive[i]:
-                    thdd, chdd, phdd = accelerations(r8[i], r9[i], r5[i], r6[i], r7[i],
-                                                     pc[i], pa[i], pb[i])
-                    record(obs_l, i, n == 0, t, t - t_seen, r0[i], r1[i], r2[i], r8[i], r9[i],
-                           r3[i], r5[i], r6[i], r7[i], thdd, chdd, phdd, pc[i], pa[i], pb[i],
-                           math.nan, math.nan, math.nan)
-                    if stop_after > 0 and done(obs_l, i, stop_after):
+            block_record(lanes, obs_l, alive, n == 0, t, t - t_seen, r0, r1, r2, r8, r9, r3,
+                         r5, r6, r7, pc, pa, pb)
+            if stop_after > 0:
+                for i in range(m):
+                    if alive[i] and done(obs_l, i, stop_after):
                         alive[i] = False  # period mode: enough theta cycles seen
             t_seen = t
             if stop_after > 0 and n_rec == 0:
@@ -90,6 +92,7 @@ def run_block(y0, params, dt, n_steps, lo, hi, cos_min, observer_on, observe_eve
                         t_stop[i] = t + dt
     for i in range(m):
 {store}
+    block_close(lanes, obs_l)
     for k in range(n_obs):
         for i in range(m):
             obs[k, lo + i] = obs_l[k, i]
@@ -240,6 +243,9 @@ from ballsurvey.physics.fast import fast_rhs
 # the observer, handed in by ballsurvey.integrate.binding.bind before anything is compiled
 record = None
 done = None
+block_open = None
+block_record = None
+block_close = None
 """
 
 
@@ -285,6 +291,9 @@ def make_kernels(method: str, observer: Observer):
     caller again; about a second). Both run the same block kernel, so their results are
     identical; likewise run_parallel_refill and run_refill (one group) in period mode.
     """
+    if None in (observer.block_open, observer.block_record, observer.block_close):
+        raise ValueError("the fixed-step ensemble kernel needs an observer with block_open, "
+                         "block_record and block_close (binding.Observer)")
     mod = bind(f"rk_{method}", kernel_module_source(method), observer, inline_record=True)
     return mod.run_parallel, mod.run_block, mod.run_parallel_refill, mod.run_refill
 

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from .._jit import njit
+from .._jit import njit, sqrt
 
 # indices into the Euler-angle state vector (paper Eq. 43)
 X, Y, TH, CHI, PHI, THD, CHD, PHD = range(8)
@@ -107,7 +107,7 @@ def routh(sth, cth, thd, chd, phd, c, A, B):
     """Routh's integral w_eta sqrt(A B + A M a^2 cos^2 th + B M (a sin th - c)^2)
     (docs/physics.md)."""
     w_eta = phd - chd * sth
-    return w_eta * math.sqrt(A * B + A * cth * cth + B * (sth - c) ** 2)
+    return w_eta * sqrt(A * B + A * cth * cth + B * (sth - c) ** 2)
 
 
 @jit
