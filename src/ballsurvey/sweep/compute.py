@@ -133,6 +133,7 @@ def compute_chunk(spec_text: str, spec_source: str, lo: int, hi: int, parallel: 
     a = lo + (n_launches(done) if done else 0)
     threads = _threads(parallel)
     smallest = min(hi - lo, 4 * threads)
+    quantum = spec.block * threads
     if spec.backend == "cuda":
         unit = hi - lo
     size = unit or max(smallest, pace.get("size", 0))
@@ -150,6 +151,12 @@ def compute_chunk(spec_text: str, spec_source: str, lo: int, hi: int, parallel: 
                 target = max(smallest, (b - a) / max(took, 1e-6) * unit_s)
                 # a unit cut short by the chunk's end may shrink the size, not grow it
                 size = int(min(4 * (b - a) if b - a == size else size, target))
+                # whole blocks, as many for each thread (numba gives each an equal share of
+                # the blocks, in order): 140 launches in blocks of 64 would leave one of two
+                # threads a block to do alone, a third of the unit's time with the other idle
+                # (and blocks cut smaller to balance them lose the kernel's SIMD width)
+                if size > quantum:
+                    size -= size % quantum
                 pace["size"] = size
             a = b
     except KeyboardInterrupt:
