@@ -81,10 +81,11 @@ FALLBACK_H_INIT = 1e-3  #: the fixed-frame re-run's first trial step (non-dimens
 #: observer sees each accepted step, and a slow launch (a ball rocking a hair from the upright)
 #: would otherwise take a handful of steps a theta cycle, too few to see its shape
 FALLBACK_H_MAX = 0.1
-#: the fixed-frame fallback runs its launches in parallel (numba threads) from this many on;
-#: fewer run on the calling thread: a handful take a fraction of a second, less than the first
-#: compilation of the parallel driver costs (a few seconds), and the results are the same
-FALLBACK_PARALLEL_MIN = 8
+#: the fixed-frame fallback of a parallel run runs its launches in parallel (numba threads) from
+#: this many on (a map's units hand it a few each: the square map's 91 in units of 128 launches
+#: took 0.55-0.67 s on one thread, 0.42-0.51 s on two); a serial run (a small map, a dask
+#: worker) never compiles the parallel driver, and the results are the same
+FALLBACK_PARALLEL_MIN = 2
 #: a launch that blew up after its tilt passed this (rad) is taken to have met the Euler chart's
 #: singularity (chidot ~ 1 / cos theta outruns the fixed step), not a step too large
 NEAR_SINGULAR_THETA = math.radians(80.0)
