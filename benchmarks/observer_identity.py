@@ -3,10 +3,11 @@
 Each revision runs in a fresh process of its own (the revision's tree exported with `git archive`
 into a temporary folder, first on the path), on the same launches: a spec's map through
 `ensemble.integrate` in full-length mode (every observer slot of every launch, its outcome, stop
-time and end state; blocks of 64, 37 and 150 launches), the same launches in period mode (`stop_after`: the refill kernel) and with
-samples kept (`run_block` with `stop_after`), and the spec's sweep end to end (the map file:
-fixed-frame fallback and labels included). Prints, per case, whether the two revisions agree to
-the bit (NaN payloads and signed zeros included) and, where they do not, the slots that differ:
+time and end state; blocks of 64, 37 and 150 launches), the same launches in period mode
+(`stop_after`: the refill kernel) and with samples kept (`run_block` with `stop_after`), and the
+spec's sweep end to end (the map file: fixed-frame fallback and labels included). Prints, per
+case, whether the two revisions agree to the bit (NaN payloads and signed zeros included) and,
+where they do not, the slots that differ:
 
     python benchmarks/observer_identity.py --against eca85b6 [--spec sweeps/square-map.toml]
 """

@@ -59,7 +59,7 @@ def test_sincos_shift_is_the_angle_sum_to_rounding(m, h):
     d = np.random.default_rng(2).uniform(-h, h, 50_000)
     s, c = _shift(m, d)
     # reference in extended precision: sin and cos of m + d with d not rounded into the sum
-    ml, dl = np.longdouble(math.fsum([m])), d.astype(np.longdouble)
+    ml, dl = np.longdouble(m), d.astype(np.longdouble)
     es, ec = np.sin(ml + dl), np.cos(ml + dl)
     assert np.max(np.abs(s - es.astype(float))) <= 2.3e-16
     assert np.max(np.abs(c - ec.astype(float))) <= 2.3e-16

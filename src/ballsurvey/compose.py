@@ -27,9 +27,19 @@ import numpy as np
 
 from .ball import flat_face_theta_of, nondim_params_of
 from .classify import cycle
-from .classify import observer as ob
 from .classify.labels import CODE, Thresholds, label_fields
-from .classify.observer import N_OBS, O_DE, O_E0, O_TH_MAX, O_TH_MIN, cycles_done, observe
+from .classify.observer import (
+    N_OBS,
+    O_DE,
+    O_E0,
+    O_TH_MAX,
+    O_TH_MIN,
+    block_close,
+    block_open,
+    block_record,
+    cycles_done,
+    observe,
+)
 from .classify.step_observer import observe_start, observe_step
 from .integrate import ensemble, lanes
 from .integrate import outcome as oc
@@ -60,8 +70,8 @@ def in_line(times: dict) -> float:
     return sum(v for k, v in times.items() if k != BESIDE)
 
 #: the classifier's streaming observer, as the integrators take it
-OBSERVER = Observer(record=observe, done=cycles_done, block_open=ob.block_open,
-                    block_record=ob.block_record, block_close=ob.block_close)
+OBSERVER = Observer(record=observe, done=cycles_done, block_open=block_open,
+                    block_record=block_record, block_close=block_close)
 #: the same record from an adaptive integration's accepted steps (the map's dop853 on SIMD lanes)
 STEP_OBSERVER = StepObserver(start=observe_start, step=observe_step, done=cycles_done)
 #: methods for one trajectory (`run_trajectory`, `simulate`)
@@ -328,7 +338,7 @@ def by_quadrature(y0, params, plan: StepPlan, *, rtol=1e-9, atol=1e-12, block=64
                                       h_init=plan.h_init_nd, stop_after=stop,
                                       # one group of lanes runs on one thread: waking the
                                       # others for it cost 1-3 ms a chunk (0.2-0.7 s of a
-                                      # headline map's 122 chunks of a few launches each)
+                                      # headline map's chunks of a few launches each)
                                       parallel=parallel and bad.size > block)
         for name in ("obs", "outcome", "t_stop", "formulation", "n_steps", "y_end"):
             getattr(res, name)[..., bad] = getattr(r2, name)

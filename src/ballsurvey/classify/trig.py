@@ -23,7 +23,7 @@ by tens of radians at most.
 from __future__ import annotations
 
 import math
-from decimal import Decimal, getcontext
+from decimal import Decimal, localcontext
 
 from .._jit import njit
 
@@ -33,26 +33,24 @@ jit = njit(cache=True, nogil=True, error_model="numpy", inline="always")  # stam
 def _split_half_pi(bits: int = 33) -> tuple[float, float, float]:
     """pi/2 as hi + mid + lo, hi and mid of `bits` significant bits (k * each exact for small
     k), from 60 digits of pi."""
-    getcontext().prec = 80
-    rest = Decimal("3.14159265358979323846264338327950288419716939937510582097494459") / 2
-    parts = []
-    for _ in range(2):
-        e = math.frexp(float(rest))[1]
-        q = Decimal(2) ** (bits - e)
-        part = Decimal(int(rest * q)) / q  # rest truncated to `bits` bits
-        parts.append(float(part))
-        rest -= part
-    parts.append(float(rest))
+    with localcontext() as ctx:  # the process's own decimal context is left as it is
+        ctx.prec = 80
+        rest = Decimal("3.14159265358979323846264338327950288419716939937510582097494459") / 2
+        parts = []
+        for _ in range(2):
+            e = math.frexp(float(rest))[1]
+            q = Decimal(2) ** (bits - e)
+            part = Decimal(int(rest * q)) / q  # rest truncated to `bits` bits
+            parts.append(float(part))
+            rest -= part
+        parts.append(float(rest))
     return tuple(parts)
 
 
 PIO2_HI, PIO2_MID, PIO2_LO = _split_half_pi()
 TWO_OVER_PI = 2.0 / math.pi
-#: Taylor coefficients: sin r = r + r^3 (S1 + r^2 (S2 + ...)), cos r = 1 + r^2 (C1 + r^2 (...))
-S1, S2, S3, S4, S5, S6, S7, S8 = ((-1.0) ** n / math.factorial(2 * n + 1) for n in range(1, 9))
-C1, C2, C3, C4, C5, C6, C7, C8, C9 = ((-1.0) ** n / math.factorial(2 * n) for n in range(1, 10))
-#: the same series on |d| <= pi/2 (`sincos_shift`): sin d = d + d^3 (T1 + d^2 (T2 + ...)),
-#: cos d - 1 = d^2 (K1 + d^2 (K2 + ...))
+#: Taylor coefficients: sin d = d + d^3 (T1 + d^2 (T2 + ...)), cos d - 1 = d^2 (K1 + d^2 (...));
+#: `sincos` (|r| <= pi/4) takes the first 8 and 9 of them, `sincos_shift` (|d| <= pi/2) all 11
 T1, T2, T3, T4, T5, T6, T7, T8, T9, T10, T11 = (
     (-1.0) ** n / math.factorial(2 * n + 1) for n in range(1, 12))
 K1, K2, K3, K4, K5, K6, K7, K8, K9, K10, K11 = (
@@ -70,10 +68,10 @@ def sincos(x):
     k = math.floor(x * TWO_OVER_PI + 0.5)
     r = ((x - k * PIO2_HI) - k * PIO2_MID) - k * PIO2_LO
     z = r * r
-    p = S5 + z * (S6 + z * (S7 + z * S8))
-    s = r + r * z * (S1 + z * (S2 + z * (S3 + z * (S4 + z * p))))
-    p = C5 + z * (C6 + z * (C7 + z * (C8 + z * C9)))
-    c = 1.0 + z * (C1 + z * (C2 + z * (C3 + z * (C4 + z * p))))
+    p = T5 + z * (T6 + z * (T7 + z * T8))
+    s = r + r * z * (T1 + z * (T2 + z * (T3 + z * (T4 + z * p))))
+    p = K5 + z * (K6 + z * (K7 + z * (K8 + z * K9)))
+    c = 1.0 + z * (K1 + z * (K2 + z * (K3 + z * (K4 + z * p))))
     q = k - 4.0 * math.floor(0.25 * k)  # k mod 4, 0..3
     odd = (q == 1.0) | (q == 3.0)
     sv = c if odd else s
