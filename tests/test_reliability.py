@@ -18,7 +18,7 @@ import xarray as xr
 from ballsurvey.cli import main
 from ballsurvey.limits import InputError, RunError
 from ballsurvey.simulate import simulate
-from ballsurvey.sweep import engine, load_spec, run_sweep
+from ballsurvey.sweep import engine, executors, load_spec, run_sweep
 from ballsurvey.sweep.engine import OutputBusy, OutputLock, lock_path, parts_dir
 
 TINY = """
@@ -690,6 +690,92 @@ def test_a_part_failing_in_the_background_stops_the_run_and_it_resumes(tmp_path,
     assert not list(parts.glob("chunk-*.npz")) and not list(parts.glob(".*tmp*"))
     monkeypatch.setattr(engine, "_write_part", write)
     same_map(run_sweep(spec, resume=True, command="test"), reference)
+
+
+def _calls(monkeypatch):
+    """The launch ranges the embedded run hands compute_chunk, in order."""
+    calls = []
+    compute_chunk = executors.compute_chunk
+
+    def recorded(text, source, lo, hi, *args, **kw):
+        calls.append((lo, hi))
+        return compute_chunk(text, source, lo, hi, *args, **kw)
+    monkeypatch.setattr(executors, "compute_chunk", recorded)
+    return calls
+
+
+def test_parallel_run_computes_successive_chunks_in_one_call_same_map(tmp_path, reference,
+                                                                      monkeypatch):
+    """With the parallel kernels, the chunks after the first (whose pace sets the unit) are
+    computed in one call: parts and map are those of the chunk-by-chunk run, and on_chunk
+    still hears of every chunk, in order, once its part is on disk."""
+    spec = tiny_spec(tmp_path, "grp.nc")
+    calls, seen = _calls(monkeypatch), []
+
+    def on_chunk(k):
+        assert (parts_dir(spec.output) / f"chunk-{k:06d}.npz").exists()
+        seen.append(k)
+    same_map(run_sweep(spec, command="test", parallel=True, on_chunk=on_chunk), reference)
+    assert calls == [(0, 2), (2, 6)] and seen == [0, 1, 2]
+
+
+def test_ctrl_c_within_a_call_of_several_chunks_keeps_them_all(tmp_path, reference,
+                                                               monkeypatch):
+    """Ctrl-C as a call of chunks 1 and 2 ends: both are saved (2 as the interrupted chunk, 1
+    as a whole chunk before it), all 6 launches are counted, and --resume only assembles."""
+    spec = tiny_spec(tmp_path, "grpc.nc")
+    calls = _calls(monkeypatch)
+
+    def on_unit(done, total):
+        if done == 6:
+            raise KeyboardInterrupt
+    with pytest.raises(engine.SweepInterrupted) as exc:
+        run_sweep(spec, command="test", parallel=True, on_unit=on_unit)
+    assert calls == [(0, 2), (2, 6)] and exc.value.kept == 6
+    assert len(list(parts_dir(spec.output).glob("chunk-*.npz"))) == 3
+    redone = []
+    same_map(run_sweep(spec, resume=True, command="test", on_chunk=redone.append), reference)
+    assert redone == []
+
+
+def test_a_part_failing_in_a_batch_stops_the_run_and_it_resumes(tmp_path, reference,
+                                                                monkeypatch):
+    """Chunks 1 and 2 are saved as one batch behind the run; chunk 1's part fails (a full
+    disk): one RunError that counts only chunk 0 as kept, chunk 2 is not saved after it, and
+    --resume gives the uninterrupted map."""
+    spec = tiny_spec(tmp_path, "grpf.nc")
+    log = []
+    calls = _calls(monkeypatch)
+    write = _slow_writes(monkeypatch, log, delay=0.05, fail_at=1)
+    with pytest.raises(RunError, match=r"chunk-000001\.npz: No space left on device; 2 of 6 "
+                                       r"launches are kept .*--resume"):
+        run_sweep(spec, command="test", parallel=True)
+    assert calls == [(0, 2), (2, 6)]
+    assert [e[1] for e in log if e[0] == "start"] == [0, 1]
+    assert [p.name for p in parts_dir(spec.output).glob("chunk-*.npz")] == ["chunk-000000.npz"]
+    monkeypatch.setattr(engine, "_write_part", write)
+    same_map(run_sweep(spec, resume=True, command="test"), reference)
+
+
+def test_ctrl_c_splits_over_the_chunks_of_its_call():
+    """A Ctrl-C after 3 launches of a call over chunks 1 and 2 (2 launches each): chunk 1 is
+    whole (a prefix), chunk 2 holds its first launch (the interrupted chunk); one chunk in the
+    call: the interruption is that chunk's, as it came."""
+    from ballsurvey.sweep.compute import ChunkInterrupted, fields_of, n_launches
+
+    chunks = [(0, 2, None), (2, 4, None), (4, 6, None)]
+    got = {"label": np.array([10, 11, 12], dtype=np.int8), "x": np.array([1.0, 2.0, 3.0])}
+    out = executors._split_interrupt(ChunkInterrupted(got, 3), [1, 2], chunks)
+    assert out.chunk == 2 and out.done == 1 and list(out.prefixes) == [1]
+    assert fields_of(out.result)["label"].tolist() == [12]
+    assert fields_of(out.prefixes[1])["x"].tolist() == [1.0, 2.0]
+    assert n_launches(out.prefixes[1]) == 2
+    first = {k: v[:1] for k, v in got.items()}
+    alone = executors._split_interrupt(ChunkInterrupted(first, 1), [2], chunks)
+    assert alone.chunk == 2 and alone.done == 1 and alone.result is first
+    assert not getattr(alone, "prefixes", None)
+    none = executors._split_interrupt(ChunkInterrupted({}, 0), [1, 2], chunks)
+    assert none.chunk == 1 and none.done == 0
 
 
 def test_a_held_ctrl_c_goes_to_the_handler_that_was_there():

@@ -64,9 +64,25 @@ class Unlabelled:
         return out
 
 
+class Share:
+    """Launches a..b of a result computed for several chunks at once (an `Unlabelled` or
+    {variable: array}): `fields_of` labels the whole result on its first call (one labelling
+    for all the chunks) and copies this share out of it."""
+
+    def __init__(self, whole, a: int, b: int):
+        self.whole, self.a, self.b = whole, int(a), int(b)
+
+    @property
+    def n(self) -> int:
+        return self.b - self.a
+
+    def fields(self) -> dict:
+        return {k: np.array(v[self.a:self.b]) for k, v in fields_of(self.whole).items()}
+
+
 def fields_of(result) -> dict:
-    """{variable: array} of a result, labelling an `Unlabelled` one."""
-    return result.fields() if isinstance(result, Unlabelled) else result
+    """{variable: array} of a result, labelling an `Unlabelled` one (or a `Share` of one)."""
+    return result.fields() if isinstance(result, (Unlabelled, Share)) else result
 
 
 def _labelled(run, variables) -> dict:
@@ -98,7 +114,7 @@ def _threads(parallel: bool) -> int:
 
 def n_launches(result) -> int:
     """How many launches a result ({variable: array}, or `Unlabelled`) holds."""
-    if isinstance(result, Unlabelled):
+    if isinstance(result, (Unlabelled, Share)):
         return result.n
     return len(next(iter(result.values())))
 
@@ -123,7 +139,9 @@ def compute_chunk(spec_text: str, spec_source: str, lo: int, hi: int, parallel: 
     spec: the spec `spec_text` parses to, when the caller has it (not parsed again per chunk).
     pace: a dict shared by the chunks of one run: the adaptive unit size carries over from one
     chunk to the next (key 'size') instead of starting small in each (a map of many small
-    chunks would otherwise spend its time on units of a few launches). The units never change
+    chunks would otherwise spend its time on units of a few launches); key 'target' holds the
+    launches that take about unit_s at the pace measured (`executors.run_embedded` computes that
+    many launches of successive chunks in one call). The units never change
     a launch's result. unlabelled: return an `Unlabelled` (labelled later by `fields_of`, the
     same numbers); a Ctrl-C then raises ChunkInterrupted with an `Unlabelled` too."""
     if spec is None:
@@ -149,6 +167,7 @@ def compute_chunk(spec_text: str, spec_source: str, lo: int, hi: int, parallel: 
                 on_unit(b - a)
             if unit is None:  # aim at unit_s per unit; grow at most 4x at a time
                 target = max(smallest, (b - a) / max(took, 1e-6) * unit_s)
+                pace["target"] = int(target)
                 # a unit cut short by the chunk's end may shrink the size, not grow it
                 size = int(min(4 * (b - a) if b - a == size else size, target))
                 # whole blocks, as many for each thread (numba gives each an equal share of

@@ -205,38 +205,45 @@ class _DeferSigint:
 
 
 class _PartWriter:
-    """Saves chunks' parts in a background thread while the next chunk is computed (the kernels
-    release the GIL, and a part's checksum, file and fsync then cost no wall time): one part in
-    flight at a time, so parts are written in the order the chunks finish.
+    """Saves chunks' parts in a background thread while the next chunks are computed (the
+    kernels release the GIL, and a part's labels, checksum, file and fsync then cost no wall
+    time): one batch of parts (the chunks of one call) in flight at a time, saved in order, so
+    parts are written in the order the chunks finish.
 
-    save(k, result) writes part k (raising RunError when it cannot); `settle` waits for the part
-    in flight and raises what its save raised; `close` waits for it and drops its failure (for
-    a run that is already ending on another exception) and returns the failed chunk, if any."""
+    save(k, result) writes part k (raising RunError when it cannot); `settle` waits for the
+    batch in flight and raises what a save raised; `close` waits for it and drops its failure
+    (for a run that is already ending on another exception) and returns the chunks of a batch
+    that failed (some of them may be saved: the caller knows which), else []."""
 
     def __init__(self, save):
         from concurrent.futures import ThreadPoolExecutor
 
         self.save = save
         self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="ballsurvey-part")
-        self.pending = None  # (k, future)
+        self.pending = None  # ([k, ...], future)
 
-    def submit(self, k: int, result) -> None:
-        # a Ctrl-C between the hand-over and `pending` would leave a part in flight that no
+    def _save_all(self, items) -> None:
+        for k, result in items:
+            self.save(k, result)
+
+    def submit(self, items: list) -> None:
+        """Save [(k, result), ...] in the background, in that order."""
+        # a Ctrl-C between the hand-over and `pending` would leave parts in flight that no
         # one waits for (counted as kept, not yet on disk): it is held until `pending` is set
         with _DeferSigint():
-            self.pending = (k, self.pool.submit(self.save, k, result))
+            self.pending = ([k for k, _ in items], self.pool.submit(self._save_all, items))
 
     def failed(self) -> bool:
-        """The part in flight is done and its save raised."""
+        """The batch in flight is done and a save raised."""
         return (self.pending is not None and self.pending[1].done()
                 and self.pending[1].exception() is not None)
 
-    def settle(self):
-        """Wait for the part in flight (a Ctrl-C meanwhile is held until it is on disk, then
-        raised); returns its chunk, or None when none was in flight."""
+    def settle(self) -> list:
+        """Wait for the batch in flight (a Ctrl-C meanwhile is held until it is on disk, then
+        raised); returns its chunks ([] when none was in flight)."""
         if self.pending is None:
-            return None
-        k, future = self.pending
+            return []
+        ks, future = self.pending
         try:
             with _DeferSigint():
                 future.exception()  # waits
@@ -246,15 +253,15 @@ class _PartWriter:
             raise
         self.pending = None
         future.result()  # its failure, if any
-        return k
+        return ks
 
-    def close(self):
-        failed = None
+    def close(self) -> list:
+        failed = []
         if self.pending is not None:
-            k, future = self.pending
+            ks, future = self.pending
             self.pending = None
             if future.exception() is not None:
-                failed = k
+                failed = ks
         self.pool.shutdown(wait=True)
         return failed
 
@@ -360,28 +367,31 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
             return hi - lo - (n_launches(partials[k]) if k in partials else 0)
 
         def settle():
-            """Wait for the part in flight, then tell on_chunk it is saved."""
-            j = writer.settle()
-            if j is not None and on_chunk is not None:
-                on_chunk(j)
-
-        def finished_behind(k, result):
-            """Chunk k is computed: once the part before it is on disk, save k in the
-            background. A Ctrl-C while waiting saves k too (a ChunkInterrupted of the whole
-            chunk); an interruption raised by on_chunk drops k, as if it came before k ran."""
-            try:
-                j = writer.settle()
-            except KeyboardInterrupt:
-                whole = ChunkInterrupted(result, n_launches(result))
-                whole.chunk = k
-                raise whole from None
-            if j is not None and on_chunk is not None:
-                try:
+            """Wait for the parts in flight, then tell on_chunk they are saved."""
+            for j in writer.settle():
+                if on_chunk is not None:
                     on_chunk(j)
-                except KeyboardInterrupt:
-                    state["done"] -= computed_here(k)
-                    raise
-            writer.submit(k, result)
+
+        def finished_behind(items):
+            """Chunks [(k, result), ...] are computed: once the parts before them are on disk,
+            save them in the background. A Ctrl-C while waiting saves them too (a
+            ChunkInterrupted of the last whole chunk, the others its prefixes); an interruption
+            raised by on_chunk drops them, as if it came before they ran."""
+            try:
+                before = writer.settle()
+            except KeyboardInterrupt:
+                *rest, (k, result) = items
+                whole = ChunkInterrupted(result, n_launches(result))
+                whole.chunk, whole.prefixes = k, dict(rest)
+                raise whole from None
+            for j in before:
+                if on_chunk is not None:
+                    try:
+                        on_chunk(j)
+                    except KeyboardInterrupt:
+                        state["done"] -= sum(computed_here(k) for k, _ in items)
+                        raise
+            writer.submit(items)
 
         def advance_and_check(n):
             advance(n)
@@ -402,10 +412,10 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
         except (KeyboardInterrupt, RunError) as exc:
             bar.close()
             with _NoSigint():
-                if writer is not None:  # the part in flight first: parts stay in order
-                    lost = writer.close()
-                    if lost is not None:  # not saved: not counted as kept
-                        state["done"] -= computed_here(lost)
+                if writer is not None:  # the parts in flight first: parts stay in order
+                    for k in writer.close():
+                        if k not in saved:  # not saved: not counted as kept
+                            state["done"] -= computed_here(k)
                 if isinstance(exc, ChunkInterrupted) and exc.done > 0:
                     k = exc.chunk
                     lo, hi, _ = chunks[k]
@@ -418,7 +428,8 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
                                           exc.done)
                     except OSError:  # not saved: those launches are not counted as kept
                         state["done"] -= exc.done
-                # dask: each unsaved chunk's launches back in a row from its start
+                # the whole chunks computed with the one cut short (in this process), or
+                # (dask) each unsaved chunk's launches back in a row from its start
                 prefixes = getattr(exc, "prefixes", {})
                 for k, result in list(prefixes.items()):
                     lo, hi, _ = chunks[k]
@@ -430,6 +441,8 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
                             write_partial(parts, k, lo, hi, spec.digest, result, n)
                     except (OSError, RunError):  # not saved: not counted as kept
                         del prefixes[k]
+                        if client is None:  # whole chunks, counted as computed
+                            state["done"] -= computed_here(k)
             if isinstance(exc, RunError):
                 raise
             if client is None:

@@ -13,7 +13,7 @@ from contextlib import contextmanager
 from ..compose import TIMES, prefetch_fallback, stop_prefetch, warm_up
 from ..integrate.tableaus import FIXED_STEP
 from ..limits import RunError
-from .compute import compute_chunk, concat, n_launches
+from .compute import ChunkInterrupted, Share, compute_chunk, concat, n_launches
 from .provenance import code_digest
 from .spec import Spec
 
@@ -31,6 +31,10 @@ MIN_TASK_LAUNCHES = 64
 #: the serial kernel: it computes in under a second there, less than the first compilation of
 #: the parallel driver costs (a few seconds); the results are the same either way
 SERIAL_WORK = 1e7
+#: the most launches of successive chunks the embedded run computes in one call (about 40 MB
+#: of observer records; at 1.5 ms a call for the launch table, labelling and hand-over, a
+#: call of 65536 launches spends about 1 % of its time on them)
+GROUP_LAUNCHES = 1 << 16
 #: how often (s) a wait for a task's result looks at the cluster's health
 POLL_S = 1.0
 
@@ -61,30 +65,82 @@ def parallel_for(spec: Spec) -> bool:
     return spec.backend != "cpu" or spec.n_launches * spec.T / spec.dt >= SERIAL_WORK
 
 
+def _group(chunks: list, todo: list, i: int, partials: dict, target: int) -> list:
+    """The chunks computed in one call from todo[i] on: todo[i], then those after it in a row
+    (each beginning where the last ends, with no partial part) while the launches stay within
+    target (at least the first chunk)."""
+    group = [todo[i]]
+    lo = chunks[todo[i]][0]
+    for k in todo[i + 1:]:
+        last = chunks[group[-1]]
+        if k != group[-1] + 1 or k in partials or chunks[k][0] != last[1] \
+                or chunks[k][1] - lo > target:
+            break
+        group.append(k)
+    return group
+
+
+def _shares(result, group: list, chunks: list, n: int) -> dict:
+    """{chunk: its launches} of a result holding the first n launches of a group of chunks
+    (one chunk: the result itself); a chunk only partly within them is its own key too."""
+    if len(group) == 1:
+        return {group[0]: result}
+    lo = chunks[group[0]][0]
+    return {k: Share(result, chunks[k][0] - lo, min(n, chunks[k][1] - lo))
+            for k in group if chunks[k][0] - lo < n}
+
+
+def _split_interrupt(exc: ChunkInterrupted, group: list, chunks: list) -> ChunkInterrupted:
+    """A Ctrl-C within a group of chunks as the engine saves it: the chunk cut short (or the
+    last whole one) as the interruption's `chunk` and result, the whole chunks before it as
+    its `prefixes` ({chunk: launches})."""
+    if len(group) == 1 or not exc.done:
+        exc.chunk = group[0]
+        return exc
+    shares = _shares(exc.result, group, chunks, exc.done)
+    k = max(shares)
+    result = shares.pop(k)
+    out = ChunkInterrupted(result, n_launches(result))
+    out.chunk, out.prefixes = k, shares
+    return out
+
+
 def run_embedded(spec: Spec, chunks: list, todo: list, finished, *, partials=None,
                  on_unit=None, unlabelled: bool = False, parallel: bool | None = None) -> None:
-    """Chunks `todo` in this process, one after the other; finished(k, result) after each.
+    """Chunks `todo` in this process, in order; finished([(k, result), ...]) after each call.
+    With the parallel kernels, successive chunks are computed in one call, as many as make a
+    unit of work at the pace measured (`compute.UNIT_S`): a map of many small chunks (a grid's
+    rows) would otherwise spend a sixth of its time on each call's launch tables, labelling
+    and hand-over.
     partials: {k: results of chunk k's first launches} kept from an interrupted run.
-    unlabelled: hand `finished` a `compute.Unlabelled` (its labels computed by
-    `compute.fields_of`, in finished's time: a background writer's, while the next chunk runs).
+    unlabelled: hand `finished` results that `compute.fields_of` labels (an `Unlabelled`, or a
+    `Share` of one), in finished's time: a background writer's, while the next call runs.
     parallel: the parallel kernels or the serial ones; None: `parallel_for(spec)`.
-    Ctrl-C raises compute.ChunkInterrupted (with its `chunk`) holding the finished launches."""
+    Ctrl-C raises compute.ChunkInterrupted (with its `chunk`, and the whole chunks of its call
+    as `prefixes`) holding the finished launches."""
     partials = partials or {}
-    pace = {}  # the unit size, carried from chunk to chunk
+    pace = {}  # the unit size, carried from call to call
     parallel = parallel_for(spec) if parallel is None else parallel
     if spec.method in FIXED_STEP and spec.backend == "cpu" and todo:
         prefetch_fallback(parallel)  # compiled beside the fixed-step kernel where not cached
     try:
-        for k in todo:
-            lo, hi, _ = chunks[k]
+        i = 0
+        while i < len(todo):
+            # the serial kernel runs small maps only (`SERIAL_WORK`): chunk by chunk there
+            target = min(pace.get("target", 0), GROUP_LAUNCHES) if parallel else 0
+            group = _group(chunks, todo, i, partials, target)
+            lo, hi = chunks[group[0]][0], chunks[group[-1]][1]
             try:
                 result = compute_chunk(spec.text, spec.source, lo, hi, parallel=parallel,
-                                       done=partials.get(k), on_unit=on_unit, spec=spec,
+                                       done=partials.get(group[0]), on_unit=on_unit, spec=spec,
                                        pace=pace, unlabelled=unlabelled)
+            except ChunkInterrupted as exc:
+                raise _split_interrupt(exc, group, chunks) from None
             except KeyboardInterrupt as exc:
-                exc.chunk = k
+                exc.chunk = group[0]
                 raise
-            finished(k, result)
+            finished(list(_shares(result, group, chunks, hi - lo).items()))
+            i += len(group)
     finally:
         stop_prefetch()
 
