@@ -778,6 +778,89 @@ def test_ctrl_c_splits_over_the_chunks_of_its_call():
     assert none.chunk == 1 and none.done == 0
 
 
+def _launches_on_disk(spec):
+    """Launches a run's parts hold: whole parts' chunks, partial parts' `done` (of chunks with
+    no whole part)."""
+    from ballsurvey.sweep.plan import plan_chunks
+
+    chunks, parts = plan_chunks(spec.shape, spec.chunk), parts_dir(spec.output)
+    whole = {int(p.name[6:12]) for p in parts.glob("chunk-*.npz")}
+    n = sum(chunks[k][1] - chunks[k][0] for k in whole)
+    for p in parts.glob("partial-*.npz"):
+        if int(p.name[8:14]) not in whole:
+            with np.load(p) as z:
+                n += json.loads(str(z["__meta__"]))["done"]
+    return n
+
+
+@pytest.mark.parametrize("where", ["hand-over", "unwinding"])
+def test_a_ctrl_c_no_handler_holds_counts_only_the_launches_on_disk(tmp_path, reference,
+                                                                    monkeypatch, where):
+    """A Ctrl-C where no handler holds it loses the launches of the call in hand: as a call's
+    kernels return, before its chunks reach the writer ('hand-over'), or a second Ctrl-C while
+    the first is on its way out of the run ('unwinding'). The one line counts the launches on
+    disk (chunk 0's), not those computed, and --resume gives the uninterrupted map."""
+    spec = tiny_spec(tmp_path, f"{where}.nc")
+    calls, on_unit = _calls(monkeypatch), None
+    if where == "hand-over":
+        shares = executors._shares
+
+        def cut(result, group, *args):
+            if len(group) > 1:
+                raise KeyboardInterrupt
+            return shares(result, group, *args)
+        monkeypatch.setattr(executors, "_shares", cut)
+    else:
+        stop = executors.stop_prefetch
+
+        def second():
+            monkeypatch.setattr(executors, "stop_prefetch", stop)
+            stop()
+            raise KeyboardInterrupt
+
+        def on_unit(done, total):
+            if done == 6:
+                monkeypatch.setattr(executors, "stop_prefetch", second)
+                raise KeyboardInterrupt
+    with pytest.raises(engine.SweepInterrupted) as exc:
+        run_sweep(spec, command="test", parallel=True, on_unit=on_unit)
+    assert calls == [(0, 2), (2, 6)]
+    assert exc.value.kept == _launches_on_disk(spec) == 2
+    monkeypatch.undo()
+    same_map(run_sweep(spec, resume=True, command="test"), reference)
+
+
+@pytest.mark.parametrize("fail_at", [None, 1])
+def test_a_call_may_begin_at_a_partial_part_and_a_failed_write_counts_it_kept(
+        tmp_path, reference, monkeypatch, fail_at):
+    """Chunk 0's part is missing and chunk 1 has a partial part (its first launch) from an
+    earlier run: the parallel resume computes chunk 0, then chunks 1 and 2 in one call from the
+    partial part on, and the map is the uninterrupted one without that launch computed again.
+    A full disk at chunk 1's part: the one RunError counts the partial part, still on disk, as
+    kept (3 of 6 launches), and --resume gives the map."""
+    from ballsurvey.sweep.compute import compute_chunk
+    from ballsurvey.sweep.parts import write_partial
+
+    spec, parts = crashed_sweep(tmp_path, f"p{fail_at}.nc", at=0)
+    (parts / "chunk-000000.npz").unlink()
+    first = compute_chunk(spec.text, spec.source, 2, 3, parallel=False, spec=spec)
+    write_partial(parts, 1, 2, 4, spec.digest, first, 1)
+    calls, report = _calls(monkeypatch), {}
+    if fail_at is None:
+        same_map(run_sweep(spec, resume=True, command="test", parallel=True, report=report),
+                 reference)
+        assert report["resumed"] == 1 and report["computed"] == 5
+    else:
+        _slow_writes(monkeypatch, [], delay=0, fail_at=fail_at)
+        with pytest.raises(RunError, match=r"chunk-000001\.npz: No space left on device; 3 of "
+                                           r"6 launches are kept"):
+            run_sweep(spec, resume=True, command="test", parallel=True)
+        assert _launches_on_disk(spec) == 3
+        monkeypatch.undo()
+        same_map(run_sweep(spec, resume=True, command="test"), reference)
+    assert calls[:2] == [(0, 2), (2, 6)]
+
+
 def test_a_held_ctrl_c_goes_to_the_handler_that_was_there():
     """_DeferSigint holds a Ctrl-C during a part write: an ignored SIGINT (while an interrupted
     run saves its work) stays ignored, not a bare KeyboardInterrupt; a handler of the caller's

@@ -330,6 +330,15 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
                 on_unit(state["done"], spec.n_launches)
 
         saved = set(done)  # chunks whose part is on disk
+        on_disk = {k: n_launches(p) for k, p in partials.items()}  # partial parts' launches
+
+        def kept():
+            """Launches on disk: whole parts, and partial parts of chunks with none. Counted
+            from what was saved, not from what was computed: a Ctrl-C that no handler holds (a
+            second one while the first ends the run) loses the launches of the call in hand."""
+            return sum(chunks[k][1] - chunks[k][0] for k in saved) + \
+                sum(n for k, n in on_disk.items() if k not in saved)
+
         held: dict = {}  # parts this run saved, kept for the assembly (`HELD_PARTS_BYTES`)
         held_bytes = 0
 
@@ -341,9 +350,8 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
                 try:
                     _write_part(parts, k, lo, hi, spec.digest, result)
                 except OSError as exc:  # a full disk, a folder gone read-only
-                    kept = sum(chunks[j][1] - chunks[j][0] for j in saved)
                     raise RunError(f"cannot save {_part_path(parts, k)}: "
-                                   f"{exc.strerror or exc}; {kept} of {spec.n_launches} "
+                                   f"{exc.strerror or exc}; {kept()} of {spec.n_launches} "
                                    f"launches are kept in {parts}: run again with --resume "
                                    "once it can be written") from None
                 remove_partial(parts, k)
@@ -361,11 +369,6 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
         # in this process: each part is saved in the background while the next chunk runs
         writer = _PartWriter(save) if client is None else None
 
-        def computed_here(k):
-            """Launches of chunk k computed by this run (not taken from a partial part)."""
-            lo, hi, _ = chunks[k]
-            return hi - lo - (n_launches(partials[k]) if k in partials else 0)
-
         def settle():
             """Wait for the parts in flight, then tell on_chunk they are saved."""
             for j in writer.settle():
@@ -376,7 +379,7 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
             """Chunks [(k, result), ...] are computed: once the parts before them are on disk,
             save them in the background. A Ctrl-C while waiting saves them too (a
             ChunkInterrupted of the last whole chunk, the others its prefixes); an interruption
-            raised by on_chunk drops them, as if it came before they ran."""
+            raised by on_chunk leaves them unsaved."""
             try:
                 before = writer.settle()
             except KeyboardInterrupt:
@@ -386,11 +389,7 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
                 raise whole from None
             for j in before:
                 if on_chunk is not None:
-                    try:
-                        on_chunk(j)
-                    except KeyboardInterrupt:
-                        state["done"] -= sum(computed_here(k) for k, _ in items)
-                        raise
+                    on_chunk(j)
             writer.submit(items)
 
         def advance_and_check(n):
@@ -413,21 +412,21 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
             bar.close()
             with _NoSigint():
                 if writer is not None:  # the parts in flight first: parts stay in order
-                    for k in writer.close():
-                        if k not in saved:  # not saved: not counted as kept
-                            state["done"] -= computed_here(k)
+                    writer.close()
                 if isinstance(exc, ChunkInterrupted) and exc.done > 0:
                     k = exc.chunk
                     lo, hi, _ = chunks[k]
                     try:
                         if exc.done >= hi - lo:
                             _write_part(parts, k, lo, hi, spec.digest, fields_of(exc.result))
+                            saved.add(k)
                             remove_partial(parts, k)
                         else:
                             write_partial(parts, k, lo, hi, spec.digest, fields_of(exc.result),
                                           exc.done)
-                    except OSError:  # not saved: those launches are not counted as kept
-                        state["done"] -= exc.done
+                            on_disk[k] = exc.done
+                    except OSError:  # not saved: not counted as kept
+                        pass
                 # the whole chunks computed with the one cut short (in this process), or
                 # (dask) each unsaved chunk's launches back in a row from its start
                 prefixes = getattr(exc, "prefixes", {})
@@ -439,19 +438,12 @@ def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=N
                             finished(k, result)
                         else:
                             write_partial(parts, k, lo, hi, spec.digest, result, n)
+                            on_disk[k] = n
                     except (OSError, RunError):  # not saved: not counted as kept
-                        del prefixes[k]
-                        if client is None:  # whole chunks, counted as computed
-                            state["done"] -= computed_here(k)
+                        pass
             if isinstance(exc, RunError):
                 raise
-            if client is None:
-                kept = state["done"]  # every finished unit is saved
-            else:  # tasks back but not in a row from their chunk's start are not
-                partial = {k: n_launches(v) for k, v in {**partials, **prefixes}.items()}
-                kept = sum(chunks[k][1] - chunks[k][0] for k in saved) + \
-                    sum(n for k, n in partial.items() if k not in saved)
-            raise SweepInterrupted(parts, kept, spec.n_launches) from None
+            raise SweepInterrupted(parts, kept(), spec.n_launches) from None
         finally:
             bar.close()
             if writer is not None:
