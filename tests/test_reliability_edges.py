@@ -388,6 +388,29 @@ def test_ctrl_c_while_the_package_imports_is_one_line(how):
     assert r.returncode == 130 and r.stderr == "ballsurvey: interrupted\n", r.stderr
 
 
+EXEC_INTERRUPTED = textwrap.dedent("""
+    import runpy, sys
+    class CtrlC:  # a Ctrl-C inside an `exec` of a string while the sweep's modules import
+        def find_spec(self, name, path=None, target=None):
+            if name == "ballsurvey.sweep":
+                sys.meta_path.remove(self)
+                exec("raise KeyboardInterrupt")
+    sys.meta_path.insert(0, CtrlC())
+    sys.argv[0] = "ballsurvey"
+    runpy.run_module("ballsurvey", run_name="__main__")
+""")
+
+
+def test_ctrl_c_inside_a_librarys_exec_still_exits_130_under_python_m(tmp_path):
+    """`python -m ballsurvey sweep`, a Ctrl-C as numba starts (scipy's import runs an `exec` of
+    a string then): one line and exit status 130, not a death by SIGINT (CPython's mark of a
+    Ctrl-C that left an `exec` outlives the handler that caught it)."""
+    (tmp_path / "ctrl_c_probe.py").write_text(EXEC_INTERRUPTED)
+    r = subprocess.run([sys.executable, "-m", "ctrl_c_probe", "sweep", "x.toml"], cwd=tmp_path,
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 130 and r.stderr == "ballsurvey sweep: interrupted\n", r.stderr
+
+
 class Terminal:
     """`python -m ballsurvey ARGS` in its own process group, as at a terminal: `ctrl_c()`
     signals the whole group; killed after 300 s whatever happens."""
