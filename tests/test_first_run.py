@@ -111,3 +111,29 @@ def test_fallback_kernel_has_one_signature_for_every_caller():
         k: v for k, v in compose.FALLBACK.items() if k != "observer" and k != "n_slots"},
         observer=compose.OBSERVER, n_slots=compose.N_OBS)
     assert len(make_kernels(compose.OBSERVER).adaptive_one.signatures) == 1
+
+
+def test_a_core_to_spare_is_measured_from_the_cores_idle_time():
+    """idle_core watches the CPUs' idle ticks: with every CPU this process may use kept busy by
+    a spinning process there is no core to spare, whatever the load average said before; the
+    idle cores are the idle share of the ticks that passed, times the CPUs."""
+    import time
+
+    import pytest
+
+    from ballsurvey import compose
+
+    assert compose.idle_cores((100, 1000), (150, 1100), 2) == 1.0
+    assert compose.idle_cores((100, 1000), (100, 1000), 4) == 4.0  # no tick passed
+    if compose._cpu_ticks(os.sched_getaffinity(0)) is None:
+        pytest.skip("no /proc/stat here: idle_core falls back on the load average")
+    spin = "import time\nt = time.time()\nwhile time.time() - t < 4: pass"
+    procs = [subprocess.Popen([sys.executable, "-c", spin])
+             for _ in os.sched_getaffinity(0)]
+    try:
+        time.sleep(0.5)
+        assert not compose.idle_core()
+    finally:
+        for p in procs:
+            p.kill()
+            p.wait()

@@ -194,14 +194,51 @@ def cached_on_disk(disp) -> bool:
         return True
 
 
-def idle_core() -> bool:
-    """Whether this machine has a core to spare: the load average of the last minute below the
-    cores this process may use, less one (True where it cannot be told)."""
+#: how long (s) `idle_core` watches the cores' idle time
+IDLE_SAMPLE_S = 0.25
+
+
+def _cpu_ticks(cpus) -> tuple[int, int] | None:
+    """(idle, all) clock ticks of the given CPUs since boot, from /proc/stat (None elsewhere)."""
     try:
-        cores = len(os.sched_getaffinity(0))
-        return os.getloadavg()[0] < cores - 1
+        lines = Path("/proc/stat").read_text().splitlines()
+    except OSError:
+        return None
+    idle = total = 0
+    for line in lines:
+        name, _, rest = line.partition(" ")
+        if name.startswith("cpu") and name[3:].isdigit() and int(name[3:]) in cpus:
+            ticks = [int(x) for x in rest.split()]
+            idle += ticks[3] + ticks[4]  # idle, iowait
+            total += sum(ticks[:8])  # user .. steal (guest time is within user)
+    return (idle, total) if total else None
+
+
+def idle_cores(before, after, n_cpus: int) -> float:
+    """Cores' worth of idle time between two `_cpu_ticks` readings of n_cpus CPUs."""
+    d_idle, d_total = after[0] - before[0], after[1] - before[1]
+    return n_cpus * d_idle / d_total if d_total > 0 else float(n_cpus)
+
+
+def idle_core() -> bool:
+    """Whether this machine has a core to spare besides this process's: over IDLE_SAMPLE_S, the
+    CPUs this process may use were idle for at least 1.75 cores' worth (this process waits
+    meanwhile: its own core counts as idle). Measured, not the load average: that still counts
+    for a minute the work that just ended (an install, the last command). Where /proc/stat
+    cannot be read, the load average of the last minute below the cores less one."""
+    try:
+        cpus = os.sched_getaffinity(0)
     except (AttributeError, OSError):
         return True
+    before = _cpu_ticks(cpus)
+    if before is None:
+        try:
+            return os.getloadavg()[0] < len(cpus) - 1
+        except (AttributeError, OSError):
+            return True
+    time.sleep(IDLE_SAMPLE_S)
+    after = _cpu_ticks(cpus)
+    return after is None or idle_cores(before, after, len(cpus)) >= 1.75
 
 
 def prefetch_fallback(parallel: bool) -> None:
@@ -217,10 +254,12 @@ def prefetch_fallback(parallel: bool) -> None:
     need."""
     import numba
 
-    if _HELPER or numba.get_num_threads() < 2 or not idle_core():
+    if _HELPER or numba.get_num_threads() < 2:
         return
     mod = adaptive_kernels(OBSERVER)
     if cached_on_disk(mod.adaptive_one) and (not parallel or cached_on_disk(mod.run_parallel)):
+        return
+    if not idle_core():  # asked only where there is something to compile
         return
     root = str(Path(__file__).resolve().parent.parent)  # the folder that holds ballsurvey/
     path = os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")]))
