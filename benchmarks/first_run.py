@@ -11,7 +11,9 @@ waits for a core), and the seconds the sweep itself reports as compiling kernels
 
 --ref REF: the same, in turns, with a frozen checkout of another git revision (git worktree,
 detached, imported from there by this same Python), so both figures come from one command on
-the same machine; the ratio of the best wall times is printed last. --one-thread: also this
+the same machine; the ratio of the best wall times is printed last. --busy S: every core spins
+for S seconds before each run, as an install does (the load average then reads above 1 while the
+cores are idle). --one-thread: also this
 checkout with NUMBA_NUM_THREADS=1, where the fixed-frame fallback is compiled in the run's own
 process after its kernel instead of in a helper process beside it. The load average before
 each run is printed with it: other work on the machine inflates the wall times.
@@ -52,6 +54,14 @@ def first_run(src: Path, spec: Path, threads: int | None = None) -> dict:
             "compile": float(m.group(1)) if m else float("nan"), "load": load}
 
 
+def busy(seconds: float) -> None:
+    """Every core of this machine spinning for `seconds` (one process each)."""
+    spin = f"import time\nt = time.time()\nwhile time.time() - t < {seconds}: pass"
+    procs = [subprocess.Popen([sys.executable, "-c", spin]) for _ in range(os.cpu_count() or 1)]
+    for p in procs:
+        p.wait()
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--spec", default=str(ROOT / "sweeps" / "quick.toml"))
@@ -60,6 +70,10 @@ def main() -> None:
     ap.add_argument("--one-thread", action="store_true",
                     help="also this checkout with one numba thread (no helper process: the "
                          "fallback compiles in the run's own process, after its kernel)")
+    ap.add_argument("--busy", type=float, default=0.0, metavar="S",
+                    help="before each run, keep every core busy for S seconds (spinning "
+                         "processes), as an install does: the run then starts on idle cores "
+                         "with a load average above 1")
     args = ap.parse_args()
     spec = Path(args.spec).resolve()
     with tempfile.TemporaryDirectory() as tmp:
@@ -76,6 +90,8 @@ def main() -> None:
             runs = {k: [] for k in variants}
             for _ in range(args.rounds):
                 for name, (src, threads) in variants.items():
+                    if args.busy > 0:
+                        busy(args.busy)
                     runs[name].append(r := first_run(src, spec, threads))
                     print(f"  {name:30s} wall {r['wall']:6.1f} s  cpu {r['cpu']:6.1f} s  "
                           f"compiling {r['compile']:6.1f} s  (load average {r['load']:.1f} "
