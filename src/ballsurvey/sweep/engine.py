@@ -212,8 +212,8 @@ class _PartWriter:
 
     save(k, result) writes part k (raising RunError when it cannot); `settle` waits for the
     batch in flight and raises what a save raised; `close` waits for it and drops its failure
-    (for a run that is already ending on another exception) and returns the chunks of a batch
-    that failed (some of them may be saved: the caller knows which), else []."""
+    (for a run that is already ending on another exception: what is kept is what `save`
+    recorded as saved)."""
 
     def __init__(self, save):
         from concurrent.futures import ThreadPoolExecutor
@@ -228,8 +228,8 @@ class _PartWriter:
 
     def submit(self, items: list) -> None:
         """Save [(k, result), ...] in the background, in that order."""
-        # a Ctrl-C between the hand-over and `pending` would leave parts in flight that no
-        # one waits for (counted as kept, not yet on disk): it is held until `pending` is set
+        # a Ctrl-C between the hand-over and `pending` would leave parts in flight that
+        # `settle` does not wait for: it is held until `pending` is set
         with _DeferSigint():
             self.pending = ([k for k, _ in items], self.pool.submit(self._save_all, items))
 
@@ -244,26 +244,15 @@ class _PartWriter:
         if self.pending is None:
             return []
         ks, future = self.pending
-        try:
-            with _DeferSigint():
-                future.exception()  # waits
-        except KeyboardInterrupt:
-            if future.done() and future.exception() is None:
-                self.pending = None  # on disk; a failed one stays for `close` to report
-            raise
+        with _DeferSigint():
+            future.exception()  # waits
         self.pending = None
         future.result()  # its failure, if any
         return ks
 
-    def close(self) -> list:
-        failed = []
-        if self.pending is not None:
-            ks, future = self.pending
-            self.pending = None
-            if future.exception() is not None:
-                failed = ks
+    def close(self) -> None:
+        self.pending = None
         self.pool.shutdown(wait=True)
-        return failed
 
 
 def run_sweep(spec: Spec, *, resume: bool = False, force: bool = False, client=None,

@@ -72,9 +72,8 @@ def _group(chunks: list, todo: list, i: int, partials: dict, target: int) -> lis
     group = [todo[i]]
     lo = chunks[todo[i]][0]
     for k in todo[i + 1:]:
-        last = chunks[group[-1]]
-        if k != group[-1] + 1 or k in partials or chunks[k][0] != last[1] \
-                or chunks[k][1] - lo > target:
+        # a chunk done already in between ends the row: k then begins after its end
+        if k in partials or chunks[k][0] != chunks[group[-1]][1] or chunks[k][1] - lo > target:
             break
         group.append(k)
     return group
