@@ -757,6 +757,32 @@ def test_a_part_failing_in_a_batch_stops_the_run_and_it_resumes(tmp_path, refere
     same_map(run_sweep(spec, resume=True, command="test"), reference)
 
 
+def test_the_map_file_grows_as_parts_are_saved_and_a_stopped_run_drops_it(tmp_path,
+                                                                          reference):
+    """While a run computes, its netCDF file grows in a private temporary folder beside the
+    output; a run that stops (an error, Ctrl-C) leaves no such folder, only its parts, and the
+    resumed run adds the earlier run's chunks to its own file: the same map."""
+    spec = tiny_spec(tmp_path, "grow.nc")
+    seen = []
+
+    def on_chunk(k):
+        seen.append([p.name for p in tmp_path.glob(".grow.nc.tmp-*/grow.nc")])
+        if k == 1:
+            raise Crash
+    with pytest.raises(Crash):
+        run_sweep(spec, command="test", on_chunk=on_chunk)
+    assert seen == [["grow.nc"], ["grow.nc"]]
+    assert not list(tmp_path.glob(".*tmp*")) and not spec.output.exists()
+
+    def on_unit(done, total):
+        raise KeyboardInterrupt
+    with pytest.raises(engine.SweepInterrupted):
+        run_sweep(spec, resume=True, command="test", on_unit=on_unit)
+    assert not list(tmp_path.glob(".*tmp*")) and not spec.output.exists()
+    same_map(run_sweep(spec, resume=True, command="test"), reference)
+    assert not list(tmp_path.glob(".*tmp*"))
+
+
 def test_ctrl_c_splits_over_the_chunks_of_its_call():
     """A Ctrl-C after 3 launches of a call over chunks 1 and 2 (2 launches each): chunk 1 is
     whole (a prefix), chunk 2 holds its first launch (the interrupted chunk); one chunk in the

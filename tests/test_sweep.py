@@ -144,22 +144,43 @@ def test_results_do_not_depend_on_chunking(tmp_path):
         assert np.array_equal(a[v].values, b[v].values, equal_nan=True), v
 
 
-def test_a_map_assembled_from_held_parts_is_the_one_read_back_from_files(tmp_path, monkeypatch):
-    """A run assembles its map from the parts it holds in memory; with no room to hold any, from
-    the part files it wrote: the same numbers either way."""
+def test_a_map_written_as_it_runs_is_the_one_assembled_from_held_parts_or_files(tmp_path,
+                                                                                monkeypatch):
+    """A run writes its map file as its parts are saved; where that file cannot be written (it
+    is dropped), the run assembles the map from the parts it holds in memory; with no room to
+    hold any, from the part files it wrote: the same numbers each way."""
+    from ballsurvey.store import MapWriter
     from ballsurvey.sweep import engine
 
-    read = []
+    read, put = [], []
     real = engine.read_part
     monkeypatch.setattr(engine, "read_part", lambda *a, **k: read.append(1) or real(*a, **k))
+
+    class Counted(MapWriter):
+        def put(self, k, part):
+            put.append(k)
+            super().put(k, part)
+
+    monkeypatch.setattr(engine, "MapWriter", Counted)
     spec = small_spec(tmp_path, "a.nc")
+    n_chunks = len(plan_chunks(spec.shape, spec.chunk))
     a = xr.open_dataset(run_sweep(spec, command="test"))
-    assert not read
-    monkeypatch.setattr(engine, "HELD_PARTS_BYTES", 0)
+    assert not read and sorted(put) == list(range(n_chunks)) and n_chunks > 1
+
+    class Failing(MapWriter):
+        def put(self, k, part):
+            raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(engine, "MapWriter", Failing)
     b = xr.open_dataset(run_sweep(small_spec(tmp_path, "b.nc"), command="test"))
-    assert len(read) == len(plan_chunks(spec.shape, spec.chunk)) > 1  # every part read back
+    assert not read  # from the parts held
+    monkeypatch.setattr(engine, "HELD_PARTS_BYTES", 0)
+    c = xr.open_dataset(run_sweep(small_spec(tmp_path, "c.nc"), command="test"))
+    assert len(read) == n_chunks  # every part read back
+    assert not list(tmp_path.glob(".*tmp*"))  # the dropped files went with their folders
     for v in a.data_vars:
-        assert np.array_equal(a[v].values, b[v].values, equal_nan=True), v
+        for other in (b, c):
+            assert np.array_equal(a[v].values, other[v].values, equal_nan=True), v
 
 
 class Boom(Exception):

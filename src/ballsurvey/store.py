@@ -122,15 +122,30 @@ def storage_chunks(slab, shape, target: int = STORAGE_CHUNK_VALUES) -> tuple:
     return tuple(sizes)
 
 
-def write_netcdf(path, spec, chunks: list, attrs: dict, get_part) -> None:
-    """Write a sweep's map to `path` (netCDF4, CF) one chunk in memory at a time.
+class MapWriter:
+    """A sweep's map file (netCDF4, CF) open for writing: the dimensions, coordinates and
+    variables at once, then each chunk's slab by `put` (in any order: the storage chunks lie
+    within slabs, so no write reads another back), then `close`. Every call holds the netCDF
+    lock; the file may be filled from another thread than the one that opened it (the sweep's
+    part writer fills it as parts are saved), one thread at a time.
 
-    spec: a `sweep.Spec`; chunks: its plan [(lo, hi, slab)]; attrs: the global attributes;
-    get_part(k): {variable: 1-D array} of chunk k."""
-    import netCDF4
+    spec: a `sweep.Spec`; chunks: its plan [(lo, hi, slab)]; attrs: the global attributes."""
 
-    dims = spec.dims
-    with netcdf_lock(direct=True), netCDF4.Dataset(path, "w", format="NETCDF4") as nc:
+    def __init__(self, path, spec, chunks: list, attrs: dict):
+        import netCDF4
+
+        self.chunks, self.variables, self.written = chunks, tuple(spec.variables), set()
+        with netcdf_lock(direct=True):
+            self.nc = nc = netCDF4.Dataset(path, "w", format="NETCDF4")
+            try:
+                self.vars = self._define(nc, spec, chunks, attrs)
+            except BaseException:
+                nc.close()
+                raise
+
+    @staticmethod
+    def _define(nc, spec, chunks, attrs) -> dict:
+        dims = spec.dims
         nc.setncatts(attrs)
         if spec.kind == "grid":
             for k, vals in spec.axes.items():
@@ -163,15 +178,53 @@ def write_netcdf(path, spec, chunks: list, attrs: dict, get_part) -> None:
         vars_ = {}
         for name in spec.variables:
             dtype = RESULT_VARIABLES[name][0]
+            # byte shuffle before zlib: a float's bytes grouped by significance compress
+            # faster and smaller (n_sides of the headline map: 0.31 s and 6.4 MB against
+            # 0.39 s and 7.1 MB at level 4)
             v = nc.createVariable(name, dtype, dims, zlib=spec.compression > 0,
                                   complevel=max(spec.compression, 1), chunksizes=chunksizes,
+                                  shuffle=spec.compression > 0 and dtype == "f8",
                                   fill_value=FLOAT_FILL if dtype == "f8" else False)
+            if chunksizes:
+                # a chunk cache of two storage chunks, whole ones evicted first: each slab is
+                # compressed and written as it is put, not all at the close (the default cache
+                # of 64 MB held the headline map's whole file until then); a storage chunk that
+                # meets two slabs stays until its second part comes
+                v.set_var_chunk_cache(size=2 * math.prod(chunksizes) * np.dtype(dtype).itemsize,
+                                      nelems=11, preemption=1.0)
             attrs_v = variable_attrs(name)
             attrs_v["coordinates"] = coords
             v.setncatts(attrs_v)
             vars_[name] = v
-        for k, (_lo, _hi, slab) in enumerate(chunks):
-            part = get_part(k)
-            sub = tuple(s.stop - s.start for s in slab if isinstance(s, slice))
-            for name in spec.variables:
-                vars_[name][slab] = part[name].reshape(sub)
+        return vars_
+
+    def put(self, k: int, part: dict) -> None:
+        """Chunk k's slab from part ({variable: 1-D array of its launches})."""
+        slab = self.chunks[k][2]
+        sub = tuple(s.stop - s.start for s in slab if isinstance(s, slice))
+        with netcdf_lock(direct=True):
+            for name in self.variables:
+                self.vars[name][slab] = np.asarray(part[name]).reshape(sub)
+        self.written.add(k)
+
+    def close(self) -> None:
+        """Close the file (written to disk); again: nothing."""
+        if self.nc is not None:
+            nc, self.nc = self.nc, None
+            with netcdf_lock(direct=True):
+                nc.close()
+
+
+def write_netcdf(path, spec, chunks: list, attrs: dict, get_part, writer=None) -> None:
+    """Write a sweep's map to `path` (netCDF4, CF) one chunk in memory at a time.
+
+    spec: a `sweep.Spec`; chunks: its plan [(lo, hi, slab)]; attrs: the global attributes;
+    get_part(k): {variable: 1-D array} of chunk k. writer: a `MapWriter` of that file already
+    holding some chunks (they are not asked for again); it is closed here."""
+    writer = writer or MapWriter(path, spec, chunks, attrs)
+    try:
+        for k in range(len(chunks)):
+            if k not in writer.written:
+                writer.put(k, get_part(k))
+    finally:
+        writer.close()
