@@ -160,3 +160,23 @@ def test_version():
     r = run("--version")
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == f"ballsurvey {version('ballsurvey')}"
+
+
+def test_ctrl_c_while_numba_starts_names_the_saved_parts_and_resume(tmp_path, monkeypatch,
+                                                                     capsys):
+    """A Ctrl-C in the first second of a run (numba starting), after an earlier run saved some
+    parts: one line naming them and the command that resumes, status 130."""
+    from ballsurvey.cli import main
+    from ballsurvey.cli import sweep as cli_sweep
+    from test_reliability import crashed_sweep
+
+    spec, parts = crashed_sweep(tmp_path)
+
+    def interrupted():
+        raise KeyboardInterrupt
+    monkeypatch.setattr(cli_sweep, "_start_numba", interrupted)
+    with pytest.raises(SystemExit) as stop:
+        main(["sweep", str(tmp_path / "tiny.toml"), "--resume", "--no-progress"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert stop.value.code == 130 and len(err) == 1, err
+    assert f"saved parts in {parts}" in err[0] and "--resume" in err[0], err

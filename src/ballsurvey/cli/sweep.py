@@ -66,9 +66,10 @@ def run(args):
               f" -> {spec.output}", file=sys.stderr, flush=True)
     if (args.scheduler or args.workers) and verbosity < 2:
         _quiet_dask()
-    if not (args.scheduler or args.workers):
-        report["numba_start_s"] = _start_numba()
     try:
+        if not (args.scheduler or args.workers):
+            # inside: a Ctrl-C while numba starts still names an earlier run's saved parts
+            report["numba_start_s"] = _start_numba()
         t_cluster = time.perf_counter()
         with dask_client(args.scheduler, args.workers, wait_s) as client:
             report["cluster_start_s"] = time.perf_counter() - t_cluster
