@@ -292,6 +292,14 @@ def _wait(fn, timeout=20.0, what="the page"):
     raise AssertionError(f"timed out waiting for {what}")
 
 
+def _finished_download(folder, pattern):
+    """The downloads matching pattern once Chrome has finished: it makes an empty file of the
+    final name at the start and renames its .crdownload over it at the end."""
+    if list(folder.glob("*.crdownload")):
+        return []
+    return [p for p in folder.glob(pattern) if p.stat().st_size > 0]
+
+
 _READY = """const d = window.Bokeh && Bokeh.documents[0];
 const m = d && d.get_model_by_name('map');
 return !!(m && Bokeh.index.find_one(m));"""
@@ -346,7 +354,7 @@ def test_app_in_a_browser_shows_the_clicked_launch(maps, browser, tmp_path):
         assert took < 10.0  # about a second on a quiet machine, kernels compiled
         browser.save_screenshot(str(tmp_path / "explore-app.png"))
         _click(browser, "download_csv")
-        got = _wait(lambda: list(browser.downloads.glob("*.csv")), what="the CSV download")
+        got = _wait(lambda: _finished_download(browser.downloads, "*.csv"), what="the CSV download")
         first = next(csv.DictReader(io.StringIO(got[0].read_text())))
         assert got[0].name == "theta0_2_chidot0_4.csv"
         assert float(first["theta_deg"]) == pytest.approx(2.0) and float(first["t_s"]) == 0
