@@ -1,4 +1,5 @@
-"""Count label changes between two maps of the same launches: python tools/compare_labels.py OLD NEW"""
+"""Count label changes between two maps of the same launches:
+python tools/compare_labels.py OLD NEW"""
 import collections
 import sys
 
