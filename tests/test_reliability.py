@@ -783,6 +783,38 @@ def test_the_map_file_grows_as_parts_are_saved_and_a_stopped_run_drops_it(tmp_pa
     assert not list(tmp_path.glob(".*tmp*"))
 
 
+def test_ctrl_c_while_the_growing_file_is_made_leaves_no_temporary_folder(tmp_path, reference,
+                                                                          monkeypatch):
+    """A Ctrl-C while the map file is being created (its folder made, the file not yet) stops
+    the run and removes that folder; the next run makes the same map."""
+    spec = tiny_spec(tmp_path, "early.nc")
+    made = []
+
+    def writer(path, *args, **kw):
+        made.append(path.parent.is_dir())
+        raise KeyboardInterrupt
+    monkeypatch.setattr(engine, "MapWriter", writer)
+    with pytest.raises((KeyboardInterrupt, engine.SweepInterrupted)):
+        run_sweep(spec, command="test")
+    assert made == [True]
+    assert not list(tmp_path.glob(".*tmp*")) and not spec.output.exists()
+    monkeypatch.undo()
+    same_map(run_sweep(spec, resume=True, command="test"), reference)
+
+
+def test_a_run_on_a_neighbouring_output_leaves_the_growing_file_alone(tmp_path, reference):
+    """A run on a.nc cleans its own crashed runs' folders (.a.nc.tmp-XXXX), not the folder of
+    a run on a.nc.tmp-b.nc beside it (.a.nc.tmp-b.nc.tmp-XXXX)."""
+    spec = tiny_spec(tmp_path, "a.nc")
+    mine = tmp_path / ".a.nc.tmp-crashed1"
+    neighbour = tmp_path / ".a.nc.tmp-b.nc.tmp-k3x9q2"
+    for d in (mine, neighbour):
+        d.mkdir()
+        (d / "x.nc").write_bytes(b"half")
+    same_map(run_sweep(spec, command="test"), reference)
+    assert not mine.exists() and (neighbour / "x.nc").read_bytes() == b"half"
+
+
 def test_ctrl_c_splits_over_the_chunks_of_its_call():
     """A Ctrl-C after 3 launches of a call over chunks 1 and 2 (2 launches each): chunk 1 is
     whole (a prefix), chunk 2 holds its first launch (the interrupted chunk); one chunk in the

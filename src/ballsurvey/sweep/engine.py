@@ -102,6 +102,9 @@ class _GrowingMap:
                                     global_attrs(spec, command))
         except (OSError, RuntimeError):
             self.discard()
+        except BaseException:  # Ctrl-C while the file is made: no folder left behind
+            self.discard()
+            raise
 
     def put(self, k: int, result: dict) -> bool:
         """Chunk k's slab written; False where the file is (now) dropped."""

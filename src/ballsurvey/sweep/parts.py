@@ -364,8 +364,10 @@ def check_output_path(out: Path) -> None:
 
 
 def _clean_leftovers(out: Path, parts: Path) -> None:
-    """Temporary files of earlier crashed runs (we hold the lock: nobody else is writing them)."""
-    old_tmp = re.compile(r"^\." + re.escape(out.name) + r"\.(\d+\.tmp|tmp-.*)$")
+    """Temporary files of earlier crashed runs (we hold the lock: nobody else is writing them).
+    A temporary folder's suffix has no dot, so a neighbouring output's (`a.nc.tmp-b.nc` beside
+    `a.nc`) is not taken for this output's."""
+    old_tmp = re.compile(r"^\." + re.escape(out.name) + r"\.(\d+\.tmp|tmp-[^.]*)$")
     old_part_tmp = re.compile(r"^\.(chunk-.*\.tmp\.npz|partial-.*\.tmp\.npz|manifest.*\.tmp)$")
     for d, pattern in ((out.parent, old_tmp), (parts, old_part_tmp)):
         if not d.is_dir() or d.is_symlink():
