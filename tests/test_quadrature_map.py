@@ -240,6 +240,53 @@ def test_turning_points_of_small_oscillations_against_brentq():
     assert min(ranges) < 0.005 and max(ranges) > 0.1
 
 
+#: launches of the headline box at rest in theta (theta0 deg, chidot0, phidot0 rad/s) whose far
+#: turning point Newton's method reached to rounding with F's rounding on the wrong side: the
+#: next step left the bracket and bisection ran from its far end (48-60 evaluations of F)
+ROUNDING_SIDE = [(-11.11111111111111, -7.393939393939394, 7.353535353535355),
+                 (2.6262626262626263, -0.6060606060606055, -1.6969696969696964),
+                 (-7.878787878787879, 4.727272727272727, -4.444444444444445),
+                 (-18.383838383838384, -0.1212121212121211, 0.24242424242424399),
+                 (47.07070707070707, -0.1212121212121211, 0.08080808080808133),
+                 (-9.494949494949495, 0.6060606060606055, -0.08080808080808044)]
+
+
+def test_a_turning_point_at_rounding_stops_there(monkeypatch):
+    """The far turning point of each launch against scipy's brentq on the numpy module's own F
+    (within 1e-12 rad), found in at most 24 evaluations of F and its derivative."""
+    from scipy.optimize import brentq
+
+    from ballsurvey.physics.euler import accelerations, energy, jellett, kinetic, routh
+
+    c, A, B = P
+    calls = []
+    f_df = cycle._F_dF
+    monkeypatch.setattr(cycle, "_F_dF", lambda *a: calls.append(a[0]) or f_df(*a))
+    monkeypatch.setattr(cycle, "_root", cycle._root.py_func)
+    for th_deg, cd, pd in ROUNDING_SIDE:
+        y = launch_state(th_deg, 0.0, cd, pd, TU)[:, 0]
+        args = (math.sin(y[2]), math.cos(y[2]), 0.0, y[6], y[7], c, A, B)
+        kin = kinetic(*args)
+        E, J, R = kin - c * args[0], jellett(*args), routh(*args)
+        thdd = accelerations(*args)[0]
+        d = 1.0 if thdd > 0.0 else -1.0
+        calls.clear()
+        got = cycle._turning_point.py_func(y[2] + d * cycle.START_OFFSET, d, y[2],
+                                           2.0 * abs(thdd), 16 * 2.2e-16 * (kin + c * abs(args[0])),
+                                           E, J, R, c, A, B)
+        e_ref = energy(*args)
+
+        def f(x, e_ref=e_ref, R=R, J=J):
+            return float(qmod._F(np.array(x), e_ref, R, J, c, A, B)[0])
+        lim = 0.5 * math.pi * (1.0 - 1e-13)  # the vertical, less a hair
+        a, b = y[2] + d * 1e-7, y[2] + d * 1e-7
+        while f(b) > 0.0:
+            a, b = b, d * min(lim, d * b + math.radians(0.5))
+        want = brentq(f, a, b, xtol=1e-15, rtol=1e-15)
+        assert abs(got - want) < 1e-12, (th_deg, got, want)
+        assert len(calls) <= 24, (th_deg, len(calls))
+
+
 def test_results_do_not_depend_on_block_or_threads():
     th, td, cd, pd = LAUNCHES.T
     y0 = launch_state(th, td, cd, pd, TU)

@@ -13,8 +13,10 @@ thetaddot0 says which), F is followed outward until it changes sign (a tilt that
 vertical, +-90 deg less 1e-13, is left to the integrator): each probe steps to the extrapolated
 root of q = F / |theta - theta0| (launch at a turning point: no root there, linear where F is a
 parabola) or of q = F (`_turning_point`), and the root is solved by Newton's method on F with its
-exact derivative F' = 2 thetaddot(theta, thetadot = sqrt F), from q's interpolated root, kept
-inside the bracket by bisection, until F is at its rounding.
+exact derivative F' = 2 thetaddot(theta, thetadot = sqrt F), from q's root interpolated through
+the search's last three points, kept inside the bracket by bisection, until F is within its rounding
+of 0 or a Newton step is rounding-sized (x is then the root to rounding, whichever sign F's
+rounding gave it).
 
 Quadrature. With theta = m + h sin s (m, h: the middle and half-range), s in [-pi/2, pi/2] runs the
 rising half cycle, dt/ds = h cos s / sqrt(F) is smooth (its value at the ends, sqrt(h /
@@ -206,12 +208,14 @@ def _root(a, b, x, f_noise, E, J, R, c, A, B):
             b = x
         nx = x - f / df if df != 0.0 else 0.5 * (a + b)
         lo, hi = min(a, b), max(a, b)
-        newton = lo < nx < hi and math.isfinite(nx)
-        if not newton:
+        if abs(nx - x) <= 1e-12 * max(1.0, abs(x)):
+            # a Newton step this short leaves an error of order its square: x is the root to
+            # rounding, whichever side of it F's rounding put x (a step out of the bracket
+            # here would start bisecting from its far end, some 50 steps back to x)
+            return nx if lo <= nx <= hi else x
+        if not (lo < nx < hi and math.isfinite(nx)):
             nx = 0.5 * (a + b)
-        # a Newton step this short leaves an error of order its square: rounding
-        if (newton and abs(nx - x) <= 1e-12 * max(1.0, abs(x))) or nx == x \
-                or abs(b - a) <= 4e-16 * max(1.0, abs(x)):
+        if nx == x or abs(b - a) <= 4e-16 * max(1.0, abs(x)):
             return nx
         x = nx
     return x
@@ -227,10 +231,12 @@ def _turning_point(start, d, ref, q_start, f_noise, E, J, R, c, A, B):
     F (ref NaN); q_start is q at start. Each probe's step is the linear extrapolation of q's last
     two values to its root, overshot by PREDICT_OVERSHOOT (at most PREDICT_STEP_MAX); where q
     does not fall, the step doubles from SEARCH_STEP (at most SEARCH_STEP_MAX). A near-parabolic
-    F is so bracketed in one or two probes; the root is then solved from q's linear
-    interpolation in the bracket (`_root`)."""
+    F is so bracketed in one or two probes; the root is then solved (`_root`) from q's inverse
+    quadratic interpolation through the last three points (linear through the bracket's ends
+    where that falls outside it)."""
     deflate = math.isfinite(ref)
     a, qa, step = start, q_start, SEARCH_STEP
+    p, qp = math.nan, math.nan  # the point before a
     while True:
         b = a + d * step
         vertical = abs(b) >= TILT_LIMIT
@@ -241,8 +247,16 @@ def _turning_point(start, d, ref, q_start, f_noise, E, J, R, c, A, B):
             return math.nan
         qb = fb / abs(b - ref) if deflate else fb
         if fb <= 0.0:
-            x = a + (b - a) * (qa / (qa - qb)) if qa - qb > 0.0 else 0.5 * (a + b)
-            if not (min(a, b) < x < max(a, b)):
+            lo, hi = min(a, b), max(a, b)
+            # q's root: inverse quadratic interpolation through the last three points, else
+            # linear through the bracket's ends, else its middle
+            x = math.nan
+            if math.isfinite(qp) and qp != qa and qp != qb and qa != qb:
+                x = (p * qa * qb / ((qp - qa) * (qp - qb)) + a * qp * qb / ((qa - qp) * (qa - qb))
+                     + b * qp * qa / ((qb - qp) * (qb - qa)))
+            if not lo < x < hi:
+                x = a + (b - a) * (qa / (qa - qb)) if qa - qb > 0.0 else 0.5 * (a + b)
+            if not lo < x < hi:
                 x = 0.5 * (a + b)
             return _root(a, b, x, f_noise, E, J, R, c, A, B)
         if qa > qb:  # q falls: its root lies about qb / (qa - qb) steps further on
@@ -250,6 +264,7 @@ def _turning_point(start, d, ref, q_start, f_noise, E, J, R, c, A, B):
                                              PREDICT_OVERSHOOT * step * qb / (qa - qb)))
         else:
             step = min(2.0 * step, SEARCH_STEP_MAX)
+        p, qp = a, qa
         a, qa = b, qb
 
 
@@ -304,6 +319,23 @@ def _cumulate(qm, off, n, node, f, out):
         col = uintp(off) + k * m
         for j in range(m):
             node[o, j] += qm[col + j] * fk
+
+
+@jit_inline
+def _cumulate_pair(qm, off, n, node, f1, out1, f2, out2):
+    """`_cumulate` of rows f1 and f2 into out1 and out2 in one pass over the matrix: each
+    column is loaded once for both (the same sums, in the same order)."""
+    m, o1, o2, r1, r2 = uintp(n + 1), uintp(out1), uintp(out2), uintp(f1), uintp(f2)
+    for j in range(m):
+        node[o1, j] = 0.0
+        node[o2, j] = 0.0
+    for k in range(m):
+        g1, g2 = node[r1, k], node[r2, k]
+        col = uintp(off) + k * m
+        for j in range(m):
+            q = qm[col + j]
+            node[o1, j] += q * g1
+            node[o2, j] += q * g2
 
 
 @jit_inline
@@ -442,8 +474,7 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
         sc, cc = sincos(node[_CHI, j])
         node[_FX, j] = node[_U, j] * cc * node[_TAU_C, j] - node[_W_TAU, j] * sc
         node[_FY, j] = node[_U, j] * sc * node[_TAU_C, j] + node[_W_TAU, j] * cc
-    _cumulate(qm, off, n, node, _FX, _X)
-    _cumulate(qm, off, n, node, _FY, _Y)
+    _cumulate_pair(qm, off, n, node, _FX, _X, _FY, _Y)
     period, dchi = 2.0 * per_fine, 2.0 * turn_fine
     v_int = 0.0
     for j in range(un + 1):
