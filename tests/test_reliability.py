@@ -466,6 +466,27 @@ def test_full_disk_at_assembly_is_one_line_and_leaves_no_temporary(tmp_path, ref
     same_map(tmp_path / "tiny.nc", reference)
 
 
+@pytest.mark.parametrize("why", ["NetCDF: HDF error", "Permission denied"])
+def test_a_full_disk_in_netcdfs_words_is_named_a_full_disk(tmp_path, monkeypatch, capsys, why):
+    """netCDF4 and HDF5 report a full device as "NetCDF: HDF error", even "Permission denied"
+    (both seen on a full tmpfs): with under a MiB free where the file was written, the line
+    says that there is no room, with their words after; with room, their words alone."""
+    def fails(path, *a, **k):
+        Path(path).write_bytes(b"partial")
+        raise RuntimeError(why)
+
+    for free, full in ((4096, True), (10 << 30, False)):
+        monkeypatch.setattr(engine, "_write_netcdf", fails)
+        monkeypatch.setattr(engine, "_free_bytes", lambda folder, free=free: free)
+        tiny_spec(tmp_path, f"full{free}.nc")
+        monkeypatch.chdir(tmp_path)
+        assert main(["sweep", str(tmp_path / "tiny.toml")]) == 1
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and why in err[0] and "--resume" in err[0], err
+        assert ("no space left on the device (4 kB free" in err[0]) == full, err
+        monkeypatch.undo()
+
+
 # ---------------------------------------------------------------------------------------------
 # safe files
 def test_planted_links_are_not_followed_and_leftovers_are_cleaned(tmp_path, reference):

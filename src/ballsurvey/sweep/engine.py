@@ -163,6 +163,19 @@ def verify_output(path: Path, spec: Spec) -> None:
                        "chunks are kept: run again with --resume")
 
 
+#: a write that failed with less than this free on the output's device is said to have met a
+#: full disk (netCDF4 and HDF5 report it in their own words)
+DISK_FULL_BYTES = 1 << 20
+
+
+def _free_bytes(folder: Path) -> int | None:
+    """Bytes free to this user on folder's device; None where that cannot be read."""
+    try:
+        return shutil.disk_usage(folder).free
+    except OSError:
+        return None
+
+
 def assemble(spec: Spec, parts: Path, chunks: list, command: str, get_part=None,
              growing: _GrowingMap | None = None) -> Path:
     """Write the netCDF file from the part files into a private temporary folder beside the
@@ -185,8 +198,12 @@ def assemble(spec: Spec, parts: Path, chunks: list, command: str, get_part=None,
             if isinstance(exc, RunError):
                 raise
             why = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
+            free = _free_bytes(tmpdir)  # before the half-written file is removed
+            if free is not None and free < DISK_FULL_BYTES:
+                # netCDF4 and HDF5 name a full disk "HDF error" or even "Permission denied"
+                why = f"no space left on the device ({free // 1024} kB free; {why})"
             raise RunError(f"cannot write {out}: {why}; finished chunks are kept in {parts}: "
-                           "run again with --resume") from None
+                           "run again with --resume once there is room") from None
         verify_output(tmp, spec)
         os.replace(tmp, out)
     finally:
