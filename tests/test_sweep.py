@@ -237,8 +237,11 @@ def test_kill_9_loses_only_chunks_in_flight(tmp_path):
     kept = len(list(parts.glob("chunk-*.npz")))
     assert 2 <= kept < len(plan_chunks(spec.shape, spec.chunk))
     assert json.loads((parts / "manifest.json").read_text())["spec_digest"] == spec.digest
+    # the half-grown map file stays, hidden, until the next run on this output removes it
+    assert len(list(tmp_path.glob(".killed.nc.tmp-*/killed.nc"))) == 1
     r = subprocess.run(cmd + ["--resume"], cwd=tmp_path, capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
+    assert not list(tmp_path.glob(".killed.nc.tmp-*"))
     ref = xr.open_dataset(run_sweep(replace(spec, output=tmp_path / "ref.nc"), command="test"))
     got = xr.open_dataset(spec.output)
     for v in ref.data_vars:
