@@ -287,6 +287,52 @@ def test_a_turning_point_at_rounding_stops_there(monkeypatch):
         assert len(calls) <= 24, (th_deg, len(calls))
 
 
+#: launches (theta0 deg, thetadot0, chidot0, phidot0 rad/s) whose spin nearly meets Jellett's J at
+#: the vertical (phidot0 solved for it, then nudged), so that theta_max lies 1e-12 to 1e-9 rad
+#: below 90 deg, where F ~ -1 / cos^2 theta: Newton's steps from the steep side fell under 1e-12
+#: rad while still up to 1e-9 rad short of the root, and a step past the vertical's end of the
+#: bracket was taken for F's rounding (the kernel hands these launches to the integrator)
+AT_THE_VERTICAL = [(53.2928, 0.2588, 2.1678, -1.6963485111653727),  # 8e-12 rad below
+                   (67.9958, 0.0, 12.0271, -9.337310351155578),  # 9e-11 rad below
+                   (75.2368, -1.9093, -6.3962, 4.954932264725052),  # 9e-10 rad below
+                   (62.8909, 0.0, -8.7889, 6.838124369946133)]  # 1e-12 rad below
+
+
+def test_a_turning_point_a_hair_below_the_vertical_against_brentq():
+    """theta_max of each launch against scipy's brentq on the numpy module's own F (within 1e-13
+    rad: F's slope there, 1e10 to 1e13, leaves the root no rounding to speak of)."""
+    from scipy.optimize import brentq
+
+    from ballsurvey.physics.euler import accelerations, energy, jellett, kinetic, routh
+
+    c, A, B = P
+    lim = 0.5 * math.pi * (1.0 - 1e-13)  # the vertical, less a hair (cycle.TILT_LIMIT)
+    for launch in AT_THE_VERTICAL:
+        y = launch_state(*launch, TU)[:, 0]
+        args = (math.sin(y[2]), math.cos(y[2]), y[5], y[6], y[7], c, A, B)
+        kin = kinetic(*args)
+        E, J, R = kin - c * args[0], jellett(*args), routh(*args)
+        f_noise = 16 * 2.2e-16 * (kin + c * abs(args[0]))
+        if y[5] == 0.0:  # at rest in theta: the launch is theta_min
+            assert accelerations(*args)[0] > 0.0
+            got = cycle._turning_point(y[2] + cycle.START_OFFSET, 1.0, y[2],
+                                       2.0 * abs(accelerations(*args)[0]), f_noise, E, J, R, c, A,
+                                       B)
+        else:
+            got = cycle._turning_point(y[2], 1.0, math.nan, cycle._F(y[2], E, J, R, c, A, B),
+                                       f_noise, E, J, R, c, A, B)
+        e_ref = energy(*args)
+
+        def f(x, e_ref=e_ref, R=R, J=J):
+            return float(qmod._F(np.array(x), e_ref, R, J, c, A, B)[0])
+        a = b = y[2] + 1e-7
+        while f(b) > 0.0:
+            a, b = b, min(lim, b + math.radians(0.5))
+        want = brentq(f, a, b, xtol=1e-16, rtol=8.9e-16)
+        assert 0.0 < lim - want < 1e-9, launch
+        assert abs(got - want) < 1e-13, (launch, got, want)
+
+
 def test_results_do_not_depend_on_block_or_threads():
     th, td, cd, pd = LAUNCHES.T
     y0 = launch_state(th, td, cd, pd, TU)

@@ -16,7 +16,7 @@ parabola) or of q = F (`_turning_point`), and the root is solved by Newton's met
 exact derivative F' = 2 thetaddot(theta, thetadot = sqrt F), from q's root interpolated through
 the search's last three points, kept inside the bracket by bisection, until F is within its rounding
 of 0 or a Newton step is rounding-sized (x is then the root to rounding, whichever sign F's
-rounding gave it).
+rounding gave it; near the vertical, also short against the distance to it).
 
 Quadrature. With theta = m + h sin s (m, h: the middle and half-range), s in [-pi/2, pi/2] runs the
 rising half cycle, dt/ds = h cos s / sqrt(F) is smooth (its value at the ends, sqrt(h /
@@ -208,10 +208,13 @@ def _root(a, b, x, f_noise, E, J, R, c, A, B):
             b = x
         nx = x - f / df if df != 0.0 else 0.5 * (a + b)
         lo, hi = min(a, b), max(a, b)
-        if abs(nx - x) <= 1e-12 * max(1.0, abs(x)):
-            # a Newton step this short leaves an error of order its square: x is the root to
-            # rounding, whichever side of it F's rounding put x (a step out of the bracket
-            # here would start bisecting from its far end, some 50 steps back to x)
+        # a Newton step this short leaves an error of order its square times F'' / F': x is
+        # the root to rounding, whichever side of it F's rounding put x (a step out of the
+        # bracket here would start bisecting from its far end, some 50 steps back to x). F''
+        # / F' is of order 1, but 3 / (pi/2 - |x|) near the vertical (F ~ -1 / cos^2): there
+        # the step must also be short against the distance to the vertical, or a root within
+        # 1e-8 rad of it ends 1e-12 rad steps up to 1e-9 rad short (Newton from the steep side)
+        if abs(nx - x) <= min(1e-12 * max(1.0, abs(x)), 1e-4 * (0.5 * math.pi - abs(x))):
             return nx if lo <= nx <= hi else x
         if not (lo < nx < hi and math.isfinite(nx)):
             nx = 0.5 * (a + b)
