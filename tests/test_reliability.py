@@ -484,6 +484,7 @@ def test_a_full_disk_in_netcdfs_words_is_named_a_full_disk(tmp_path, monkeypatch
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and why in err[0] and "--resume" in err[0], err
         assert ("no space left on the device (4 kB free" in err[0]) == full, err
+        assert ("--resume once there is room" in err[0]) == full, err
         monkeypatch.undo()
 
 

@@ -199,11 +199,13 @@ def assemble(spec: Spec, parts: Path, chunks: list, command: str, get_part=None,
                 raise
             why = exc.strerror if isinstance(exc, OSError) and exc.strerror else str(exc)
             free = _free_bytes(tmpdir)  # before the half-written file is removed
+            when = ""
             if free is not None and free < DISK_FULL_BYTES:
                 # netCDF4 and HDF5 name a full disk "HDF error" or even "Permission denied"
                 why = f"no space left on the device ({free // 1024} kB free; {why})"
+                when = " once there is room"
             raise RunError(f"cannot write {out}: {why}; finished chunks are kept in {parts}: "
-                           "run again with --resume once there is room") from None
+                           f"run again with --resume{when}") from None
         verify_output(tmp, spec)
         os.replace(tmp, out)
     finally:
