@@ -240,6 +240,36 @@ def test_turning_points_of_small_oscillations_against_brentq():
     assert min(ranges) < 0.005 and max(ranges) > 0.1
 
 
+def _kernel_invariants(y):
+    """(args, E, J, R, f_noise) of fast state y as `cycle.cycle_one` makes them (E less M g a)."""
+    from ballsurvey.physics.euler import jellett, kinetic, routh
+
+    c, A, B = P
+    args = (math.sin(y[2]), math.cos(y[2]), y[5], y[6], y[7], c, A, B)
+    kin = kinetic(*args)
+    return (args, kin - c * args[0], jellett(*args), routh(*args),
+            cycle.ROOT_NOISE * 2.2e-16 * (kin + c * abs(args[0])))
+
+
+def _brentq_end(args, start, d, xtol, rtol):
+    """The first root of the numpy module's own F (`ballsurvey.quadrature._F`) from start in
+    direction d: bracketed by steps of 0.5 deg up to the vertical less a hair, then brentq."""
+    from scipy.optimize import brentq
+
+    from ballsurvey.physics.euler import energy, jellett, routh
+
+    c, A, B = P
+    E, J, R = energy(*args), jellett(*args), routh(*args)
+
+    def f(x):
+        return float(qmod._F(np.array(x), E, R, J, c, A, B)[0])
+    lim = 0.5 * math.pi * (1.0 - 1e-13)  # cycle.TILT_LIMIT
+    a = b = start
+    while f(b) > 0.0:
+        a, b = b, d * min(lim, d * b + math.radians(0.5))
+    return brentq(f, a, b, xtol=xtol, rtol=rtol)
+
+
 #: launches of the headline box at rest in theta (theta0 deg, chidot0, phidot0 rad/s) whose far
 #: turning point Newton's method reached to rounding with F's rounding on the wrong side: the
 #: next step left the bracket and bisection ran from its far end (48-60 evaluations of F)
@@ -254,35 +284,21 @@ ROUNDING_SIDE = [(-11.11111111111111, -7.393939393939394, 7.353535353535355),
 def test_a_turning_point_at_rounding_stops_there(monkeypatch):
     """The far turning point of each launch against scipy's brentq on the numpy module's own F
     (within 1e-12 rad), found in at most 24 evaluations of F and its derivative."""
-    from scipy.optimize import brentq
+    from ballsurvey.physics.euler import accelerations
 
-    from ballsurvey.physics.euler import accelerations, energy, jellett, kinetic, routh
-
-    c, A, B = P
     calls = []
     f_df = cycle._F_dF
     monkeypatch.setattr(cycle, "_F_dF", lambda *a: calls.append(a[0]) or f_df(*a))
     monkeypatch.setattr(cycle, "_root", cycle._root.py_func)
     for th_deg, cd, pd in ROUNDING_SIDE:
         y = launch_state(th_deg, 0.0, cd, pd, TU)[:, 0]
-        args = (math.sin(y[2]), math.cos(y[2]), 0.0, y[6], y[7], c, A, B)
-        kin = kinetic(*args)
-        E, J, R = kin - c * args[0], jellett(*args), routh(*args)
+        args, E, J, R, f_noise = _kernel_invariants(y)
         thdd = accelerations(*args)[0]
         d = 1.0 if thdd > 0.0 else -1.0
         calls.clear()
         got = cycle._turning_point.py_func(y[2] + d * cycle.START_OFFSET, d, y[2],
-                                           2.0 * abs(thdd), 16 * 2.2e-16 * (kin + c * abs(args[0])),
-                                           E, J, R, c, A, B)
-        e_ref = energy(*args)
-
-        def f(x, e_ref=e_ref, R=R, J=J):
-            return float(qmod._F(np.array(x), e_ref, R, J, c, A, B)[0])
-        lim = 0.5 * math.pi * (1.0 - 1e-13)  # the vertical, less a hair
-        a, b = y[2] + d * 1e-7, y[2] + d * 1e-7
-        while f(b) > 0.0:
-            a, b = b, d * min(lim, d * b + math.radians(0.5))
-        want = brentq(f, a, b, xtol=1e-15, rtol=1e-15)
+                                           2.0 * abs(thdd), f_noise, E, J, R, *P)
+        want = _brentq_end(args, y[2] + d * 1e-7, d, xtol=1e-15, rtol=1e-15)
         assert abs(got - want) < 1e-12, (th_deg, got, want)
         assert len(calls) <= 24, (th_deg, len(calls))
 
@@ -301,34 +317,21 @@ AT_THE_VERTICAL = [(53.2928, 0.2588, 2.1678, -1.6963485111653727),  # 8e-12 rad 
 def test_a_turning_point_a_hair_below_the_vertical_against_brentq():
     """theta_max of each launch against scipy's brentq on the numpy module's own F (within 1e-13
     rad: F's slope there, 1e10 to 1e13, leaves the root no rounding to speak of)."""
-    from scipy.optimize import brentq
+    from ballsurvey.physics.euler import accelerations
 
-    from ballsurvey.physics.euler import accelerations, energy, jellett, kinetic, routh
-
-    c, A, B = P
     lim = 0.5 * math.pi * (1.0 - 1e-13)  # the vertical, less a hair (cycle.TILT_LIMIT)
     for launch in AT_THE_VERTICAL:
         y = launch_state(*launch, TU)[:, 0]
-        args = (math.sin(y[2]), math.cos(y[2]), y[5], y[6], y[7], c, A, B)
-        kin = kinetic(*args)
-        E, J, R = kin - c * args[0], jellett(*args), routh(*args)
-        f_noise = 16 * 2.2e-16 * (kin + c * abs(args[0]))
+        args, E, J, R, f_noise = _kernel_invariants(y)
         if y[5] == 0.0:  # at rest in theta: the launch is theta_min
-            assert accelerations(*args)[0] > 0.0
-            got = cycle._turning_point(y[2] + cycle.START_OFFSET, 1.0, y[2],
-                                       2.0 * abs(accelerations(*args)[0]), f_noise, E, J, R, c, A,
-                                       B)
+            thdd = accelerations(*args)[0]
+            assert thdd > 0.0
+            got = cycle._turning_point(y[2] + cycle.START_OFFSET, 1.0, y[2], 2.0 * abs(thdd),
+                                       f_noise, E, J, R, *P)
         else:
-            got = cycle._turning_point(y[2], 1.0, math.nan, cycle._F(y[2], E, J, R, c, A, B),
-                                       f_noise, E, J, R, c, A, B)
-        e_ref = energy(*args)
-
-        def f(x, e_ref=e_ref, R=R, J=J):
-            return float(qmod._F(np.array(x), e_ref, R, J, c, A, B)[0])
-        a = b = y[2] + 1e-7
-        while f(b) > 0.0:
-            a, b = b, min(lim, b + math.radians(0.5))
-        want = brentq(f, a, b, xtol=1e-16, rtol=8.9e-16)
+            got = cycle._turning_point(y[2], 1.0, math.nan, cycle._F(y[2], E, J, R, *P),
+                                       f_noise, E, J, R, *P)
+        want = _brentq_end(args, y[2] + 1e-7, 1.0, xtol=1e-16, rtol=8.9e-16)
         assert 0.0 < lim - want < 1e-9, launch
         assert abs(got - want) < 1e-13, (launch, got, want)
 
