@@ -30,7 +30,8 @@ def _near_vertical():
 def test_defect_failed_fixed_frame_rerun_is_stored_as_fixed_frame(monkeypatch):
     # before: a fixed-frame re-run that failed kept the Euler run's `formulation = euler_angles`
     # (the observer's status slot carried both facts) and was labelled `singular`
-    monkeypatch.setattr(compose, "integrate_adaptive", partial(integrate_adaptive, max_steps=20))
+    monkeypatch.setattr(compose.lanes, "integrate_observed",
+                        partial(compose.lanes.integrate_observed, max_steps=20))
     res = compose.run_launches(_near_vertical(), P[:, None], StepPlan(3.0, 2e-4, TU))
     assert res.formulation[0] == oc.FIXED_FRAME
     assert res.outcome[0] == oc.STEP_BUDGET and 0 < res.t_stop[0] < 3.0 / TU
@@ -96,7 +97,8 @@ def test_defect_fallback_uses_the_spec_thresholds(tmp_path, classify, formulatio
 
 def test_defect_simulate_fields_are_si_like_the_map(tmp_path):
     # before: `simulate` returned jellett_drift and routh_drift non-dimensional, the map SI.
-    # Same launch, same step (T / 2000 for both), observer on every step: same numbers.
+    # Same launch, same step (T / 2000 for both); simulate's sampling observer sees every step,
+    # the map's step observer its own spans, so the figures agree to the observers' difference
     text = """
 [[points]]
 name = "fig12a"
@@ -116,9 +118,15 @@ file = "x.nc"
     spec = load_spec(path)
     m = compute_chunk(spec.text, str(path), 0, 1, parallel=False)
     a = simulate(-5.0, 0.0, 4.05, -3.0, T=2.0, dt=1e-3, n_out=2001).attrs
-    for name in ("jellett_drift", "routh_drift", "energy_drift", "theta_period_s", "side_m",
-                 "closure_m", "n_sides", "max_friction_ratio"):
-        assert a[name] == pytest.approx(float(m[name][0]), rel=1e-12, nan_ok=True), name
+    # (measured: period and side 1e-8, n_sides and friction 3e-6, closure 9e-7 m)
+    for name in ("theta_period_s", "side_m", "n_sides", "max_friction_ratio"):
+        assert a[name] == pytest.approx(float(m[name][0]), rel=1e-5), name
+    assert a["closure_m"] == pytest.approx(float(m["closure_m"][0]), abs=3e-6)
+    # the drifts are the largest over other instants (within a factor 1.2-4.2 of each other
+    # here); the units the defect dropped are factors of 3e4 (Jellett's M a^3 / t_unit) and 800
+    # (Routh's M a^2 / t_unit)
+    for name in ("jellett_drift", "routh_drift", "energy_drift"):
+        assert 0.1 < a[name] / float(m[name][0]) < 10.0, name
     assert a["jellett_drift"] > 0 and a["routh_drift"] > 0
 
 

@@ -9,7 +9,7 @@ import pytest
 
 from ballsurvey.ball import Ball
 from ballsurvey.classify import observer as ob
-from ballsurvey.compose import OBSERVER
+from ballsurvey.compose import FIXED_STEP_OBSERVER, OBSERVER
 from ballsurvey.integrate import ensemble, naive
 from ballsurvey.integrate import outcome as oc
 from ballsurvey.integrate.tableaus import FIXED_STEP
@@ -23,9 +23,9 @@ U12A = np.array([0, 0, math.radians(-5), 0, 0, 0, 4.05 * TU, -3 * TU])  # Fig. 1
 
 
 def integrate(y0, params, dt, n, method="rk4", **kw):
-    """The ensemble kernel fed the classifier's observer."""
-    return ensemble.integrate(y0, params, dt, n, method, observer=OBSERVER, n_slots=ob.N_OBS,
-                              **kw)
+    """The ensemble kernel fed the classifier's sampling observer (or kw's observer)."""
+    kw.setdefault("observer", OBSERVER)
+    return ensemble.integrate(y0, params, dt, n, method, n_slots=ob.N_OBS, **kw)
 
 
 def run(u0, T_s, dt_s, method="rk4", **kw):
@@ -113,28 +113,41 @@ def _launches(n=37, seed=4):
                                rng.uniform(-8, 0, n) * TU)
 
 
-def test_results_independent_of_block_size_and_threads():
+def _same(a, b) -> bool:
+    if a is None or b is None:
+        return a is None and b is None
+    return np.array_equal(a, b, equal_nan=a.dtype.kind == "f")
+
+
+@pytest.mark.parametrize("observer", ["sampling", "steps"])
+def test_results_independent_of_block_size_and_threads(observer):
+    # the sampling observer on every third step, and the map's step observer (each launch at its
+    # own cadence, the block's launches observed together on a common grid of steps)
+    kw = ({} if observer == "sampling" else
+          dict(observer=FIXED_STEP_OBSERVER))
     y0 = _launches()
     params = np.repeat(P[:, None], y0.shape[1], 1)
     dt, n = 1e-3 / TU, 3000
-    ref = integrate(y0, params, dt, n, block=64, parallel=False, observe_every=3)
-    runs = [integrate(y0, params, dt, n, block=b, parallel=False, observe_every=3)
+    ref = integrate(y0, params, dt, n, block=64, parallel=False, observe_every=3, **kw)
+    runs = [integrate(y0, params, dt, n, block=b, parallel=False, observe_every=3, **kw)
             for b in (1, 5)]
     old = numba.get_num_threads()
     try:
         for threads in sorted({1, old}):
             numba.set_num_threads(threads)
-            runs.append(integrate(y0, params, dt, n, block=4, observe_every=3))
+            runs.append(integrate(y0, params, dt, n, block=4, observe_every=3, **kw))
     finally:
         numba.set_num_threads(old)
     # a launch's result does not depend on its neighbours: run a slice alone
     alone = integrate(y0[:, 10:13], params[:, 10:13], dt, n, block=64, parallel=False,
-                               observe_every=3)
+                      observe_every=3, **kw)
     for got in runs:
         for a, b in zip(ref, got):
-            assert np.array_equal(a, b, equal_nan=True)
+            assert _same(a, b)
     for a, b in zip(alone, ref):
-        assert np.array_equal(a, b[..., 10:13] if b.ndim else b, equal_nan=True)
+        assert _same(a, b if b is None or not b.ndim else b[..., 10:13])
+    if observer == "steps":
+        assert ref.by_steps.all() and np.isfinite(ref.obs[ob.O_TL]).sum() > 10
 
 
 def test_blow_up_is_flagged_and_others_go_on():

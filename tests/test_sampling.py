@@ -8,8 +8,10 @@ import pytest
 
 from ballsurvey.ball import Ball
 from ballsurvey.classify.labels import LABELS
+from ballsurvey.classify.observer import N_OBS
 from ballsurvey.cli import main
-from ballsurvey.compose import classify, run_launches
+from ballsurvey.compose import OBSERVER, classify, fixed_frame_fallback, run_launches
+from ballsurvey.integrate import ensemble
 from ballsurvey.paper import FIGURES, fig4_launch
 from ballsurvey.units import StepPlan, fields_to_si, launch_state
 
@@ -20,14 +22,22 @@ PAPER = {"fig4": "circle", "fig7": "near_straight", "fig9a": "circle", "fig9c": 
          "fig12a": "square", "fig12b": "triangle"}
 
 
-def _paper_map(method, dt, observe_every):
+def _paper_map(method, dt, observe_every, sampling=False):
+    """The paper's six launches for 6 s: labels and samples per cycle. sampling: RK4 with the
+    sampling observer (the CUDA backend's), every observe_every steps, instead of the map's."""
     f = [dict(FIGURES[k]) for k in PAPER]
     f[0].update(fig4_launch(BALL)[0])  # the steady circle's spin, from the paper's Eq. (28)
     y0 = launch_state(np.array([x["theta0_deg"] for x in f]), 0.0,
                       np.array([x["chidot0"] for x in f]), np.array([x["phidot0"] for x in f]),
                       TU, chi0_deg=np.array([x.get("chi0_deg", 0.0) for x in f]))
     p = np.repeat(BALL.nondim_params()[:, None], len(f), 1)
-    res = run_launches(y0, p, StepPlan(6.0, dt, TU), method, observe_every=observe_every)
+    plan = StepPlan(6.0, dt, TU)
+    if sampling:
+        res = ensemble.integrate(y0, p, plan.dt_nd, plan.n_steps, method, observer=OBSERVER,
+                                 n_slots=N_OBS, observe_every=observe_every, parallel=False)
+        fixed_frame_fallback(y0, p, plan.T_nd, res, parallel=False)
+    else:
+        res = run_launches(y0, p, plan, method, observe_every=observe_every)
     out = fields_to_si(classify(res, BALL.flat_face_theta_rad), BALL.a, TU, BALL.M)
     return [LABELS[k] for k in out["label"]], out["samples_per_cycle"]
 
@@ -36,10 +46,19 @@ def _paper_map(method, dt, observe_every):
 def test_sparse_samples_give_no_wrong_shape(dt, every):
     # samples every 0.1-0.5 s against theta periods of 0.3-0.6 s: sampled so, the square was
     # called a rosette, the triangle a star
-    labels, samples = _paper_map("rk4", dt, every)
+    labels, samples = _paper_map("rk4", dt, every, sampling=True)
     for (name, want), got in zip(PAPER.items(), labels):
         assert got in (want, "unresolved"), (name, got)
     assert labels.count("unresolved") >= 4, labels
+
+
+@pytest.mark.parametrize("dt,every", [(1e-4, 5000), (1e-3, 400), (1e-3, 100)])
+def test_a_fixed_step_map_is_observed_as_its_interpolants_need(dt, every):
+    # the map's RK4 feeds the step observer at each launch's own cadence, whatever
+    # observe_every (there only the validity checks' cadence): the paper's words at any
+    labels, samples = _paper_map("rk4", dt, every)
+    assert labels == list(PAPER.values())
+    assert (samples[1:] >= 40).all(), samples
 
 
 @pytest.mark.parametrize("dt", [0.1, 0.02, 1e-3])
@@ -60,8 +79,8 @@ def test_the_map_settings_resolve_the_papers_launches():
 def test_sweep_summary_names_the_reason(tmp_path, capsys):
     spec = tmp_path / "s.toml"
     spec.write_text('[[points]]\nname = "fig12a"\ntheta0_deg = -5.0\nthetadot0 = 0.0\n'
-                    'chidot0 = 4.05\nphidot0 = -3.0\n[run]\nT = 4.0\nmethod = "rk4"\n'
-                    f'dt = 1e-3\nobserve_every = 400\n[output]\nfile = "{tmp_path / "m.nc"}"\n')
+                    'chidot0 = 4.05\nphidot0 = -3.0\n[run]\nT = 4.0\nmethod = "dop853"\n'
+                    f'rtol = 1e-2\natol = 1e-3\n[output]\nfile = "{tmp_path / "m.nc"}"\n')
     assert main(["sweep", str(spec)]) == 0
     out = capsys.readouterr().out
     assert "too few observer samples per theta cycle (under 20): 1" in out, out

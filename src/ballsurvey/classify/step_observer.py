@@ -93,6 +93,53 @@ def _tilt(y):
     return math.atan2(-y[EZ], cth), cth
 
 
+#: the observer's step (`step_span`): the angle the symmetry axis or G's velocity may turn in it
+STEP_ANGLE = 0.35
+#: ... and at most this fraction of the theta period, once a cycle has been seen
+STEP_CYCLE_FRACTION = 1.0 / 18.0
+#: G's speed (units of sqrt(g a)) below which its velocity's turning rate is read against this
+#: speed instead (a cusp: the velocity reverses through zero)
+SPAN_SPEED_FLOOR = 1e-2
+#: a step that holds a predicted theta extremum ends this far past it (its share of the step)
+EXTREMUM_OVERSHOOT = 1.05
+
+
+@jit
+def step_span(obs, i, ya, fa, yb, fb):
+    """The longest observer step (non-dimensional time) for launch i after a step from the state
+    ya (rate fa) to yb (rate fb): in it the symmetry axis (rate |e'|) and G's velocity
+    (|a_G| / |v_G|) turn by at most STEP_ANGLE, and theta's oscillation (its local angular
+    frequency, from e_z'' = -w^2 (e_z - centre) at the step's two ends) advances by at most
+    STEP_ANGLE; a theta cycle, once one has been seen, is cut into at least
+    1 / STEP_CYCLE_FRACTION steps; and a theta extremum predicted within reach falls near a
+    step's end. For a kernel whose own steps are short (fixed step), which observes every so many
+    of them (benchmarks/step_observer_span.py measures the records against the sampling observer
+    and the quadrature)."""
+    rate = math.sqrt(fb[EX] * fb[EX] + fb[EY] * fb[EY] + fb[EZ] * fb[EZ])
+    ax, ay, speed = obs[ob.O_P_AX, i], obs[ob.O_P_AY, i], obs[ob.O_P_SPEED, i]
+    rate = max(rate, math.sqrt(ax * ax + ay * ay) / max(speed, SPAN_SPEED_FLOOR))
+    ezdd = obs[ob.O_P_EZDD, i]
+    dez = yb[EZ] - ya[EZ]
+    if dez != 0.0:
+        w2 = -(ezdd - _axis_acceleration(ya, fa)[2]) / dez
+        if w2 > 0.0 and w2 < math.inf:
+            obs[ob.O_SPAN_W, i] = math.sqrt(w2)
+    w = obs[ob.O_SPAN_W, i]
+    if w > rate:  # NaN until known
+        rate = w
+    span = STEP_ANGLE / rate if rate > 0.0 else math.inf
+    n_cyc = obs[ob.O_NMAX, i] - 1.0
+    if n_cyc >= 1.0:
+        span = min(span, STEP_CYCLE_FRACTION * (obs[ob.O_TL, i] - obs[ob.O_T1, i]) / n_cyc)
+    # a theta extremum ahead (e_z' = 0, predicted from e_z' and e_z''): the step that holds it
+    # should end just past it, where the interpolants' error vanishes (it grows as (u (1 - u))^3
+    # inside a step), not near its middle
+    ahead = -fb[EZ] / ezdd if ezdd != 0.0 else -1.0
+    if 0.0 < ahead < 2.0 * span:
+        span = EXTREMUM_OVERSHOOT * ahead if ahead <= span else 0.5 * ahead
+    return span
+
+
 @jit
 def observe_start(obs, i, y, f, c, A, B):
     """Launch i's slots at its start: fixed-frame state y and its rate f."""

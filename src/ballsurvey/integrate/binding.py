@@ -53,11 +53,15 @@ class StepObserver(NamedTuple):
     """An observer fed by an adaptive integrator's steps: `start(obs, i, y, f, c, A, B)` with a
     launch's fixed-frame state y and its rate f, `step(obs, i, t0, h, ya, fa, yb, fb, c, A, B,
     last)` with each accepted step's start time, length, states and rates at both ends and
-    whether it is the run's last, and `done` as `Observer.done`."""
+    whether it is the run's last, and `done` as `Observer.done`; for a fixed-step kernel, which
+    observes a launch every so many of its short steps, `span(obs, i, ya, fa, yb, fb)`: the
+    longest span (non-dimensional time) the observer's next step may cover after the step just
+    observed (as `step`'s arguments)."""
 
     start: Callable
     step: Callable
     done: Callable
+    span: Callable | None = None
 
 
 def cache_dir() -> Path:

@@ -32,7 +32,8 @@ from functools import cache
 import numpy as np
 
 from ..physics.fast import N_FAST
-from .binding import Observer, bind
+from ..physics.fixed import N_FIXED
+from .binding import Observer, StepObserver, bind
 from .outcome import EULER_ANGLES, Result
 from .tableaus import FIXED_STEP, Tableau, stage_source, step_constants
 
@@ -207,6 +208,134 @@ def _kernel_source(tab: Tableau) -> str:
     )
 
 
+# The same step fed to a step observer (`binding.StepObserver`): each launch is observed at its
+# own cadence, every so many steps (as many as the observer's `span` allows), with the
+# fixed-frame state and its rate at the two ends of that span, from which the observer builds
+# its interpolants. The validity checks stay on the observe_every cadence.
+_OBSERVE_LANE = """
+{fast}
+{ind}observed_fixed_from_fast_into(ev, vb)
+{ind}kb = rhs_tuple(({tuple_vb}), pc[i], pa[i], pb[i])
+{ind}for q in range(NV):
+{ind}    fb[q] = kb[q]"""
+
+_STEPS_TEMPLATE = """
+def _next_observation(k, span, dt, n_steps):
+    # the step count of a launch's next observation after step k: span / dt steps on (at least
+    # one), at most the run's last; a long span ends on a multiple of OBSERVE_GRID steps, so that
+    # a block's launches are observed together (one pass over the block a grid point, not one a
+    # launch)
+    if not span < (n_steps - k) * dt:
+        return n_steps
+    ahead = int(span / dt)
+    if ahead >= 2 * OBSERVE_GRID:
+        return (k + ahead) // OBSERVE_GRID * OBSERVE_GRID
+    return min(n_steps, k + max(1, ahead))
+
+
+def run_block_steps(y0, params, dt, n_steps, lo, hi, cos_min, observe_every, obs, y_end,
+                    stop_after, outcome, t_stop_out):
+    m = hi - lo
+{load}
+    pc = params[0, lo:hi].copy()
+    pa = params[1, lo:hi].copy()
+    pb = params[2, lo:hi].copy()
+    alive = np.ones(m, dtype=np.bool_)
+    n_obs = obs.shape[0]
+    obs_l = np.full((m, n_obs), np.nan).T  # each launch's slots side by side in memory
+    status = np.zeros(m, dtype=np.int8)
+    t_stop = np.full(m, np.nan)
+    ya = np.empty((m, NV))
+    fa = np.empty((m, NV))
+    ev = np.empty(N_FAST)
+    vb = np.empty(NV)
+    fb = np.empty(NV)
+    n_prev = np.zeros(m, dtype=np.int64)
+    n_next = np.zeros(m, dtype=np.int64)
+    for i in range(m):
+{observe_i}
+        start(obs_l, i, vb, fb, pc[i], pa[i], pb[i])
+        for q in range(NV):
+            ya[i, q] = vb[q]
+            fa[i, q] = fb[q]
+        n_next[i] = _next_observation(0, span(obs_l, i, vb, fb, vb, fb), dt, n_steps)
+    next_min = n_steps
+    for i in range(m):
+        next_min = min(next_min, n_next[i])
+{consts}
+    for n in range(n_steps):
+{step}
+        kk = n + 1
+        if kk % observe_every == 0 or kk == n_steps:
+            for i in range(m):
+                if alive[i]:
+                    if not math.isfinite(r0[i] + r1[i] + r5[i] + r6[i] + r7[i]):
+                        alive[i] = False
+                        status[i] = NONFINITE
+                        t_stop[i] = kk * dt
+                    elif r9[i] < cos_min:
+                        alive[i] = False
+                        status[i] = CHART_SINGULAR
+                        t_stop[i] = kk * dt
+        if kk >= next_min:
+            next_min = n_steps
+            n_alive = 0
+            for i in range(m):
+                if alive[i] and n_next[i] <= kk:
+{observe_i_deep}
+                    step(obs_l, i, n_prev[i] * dt, (kk - n_prev[i]) * dt, ya[i], fa[i], vb, fb,
+                         pc[i], pa[i], pb[i], kk == n_steps)
+                    w = span(obs_l, i, ya[i], fa[i], vb, fb)
+                    for q in range(NV):
+                        ya[i, q] = vb[q]
+                        fa[i, q] = fb[q]
+                    n_prev[i] = kk
+                    n_next[i] = _next_observation(kk, w, dt, n_steps)
+                    if stop_after > 0 and done(obs_l, i, stop_after):
+                        alive[i] = False  # period mode: enough theta cycles seen
+                if alive[i]:
+                    n_alive += 1
+                    next_min = min(next_min, n_next[i])
+            if n_alive == 0:
+                break
+    for i in range(m):
+{store}
+    for k in range(n_obs):
+        for i in range(m):
+            obs[k, lo + i] = obs_l[k, i]
+    for i in range(m):
+        outcome[lo + i] = status[i]
+        t_stop_out[lo + i] = t_stop[i]
+
+
+def run_parallel_steps(y0, params, dt, n_steps, block, cos_min, observe_every, obs, y_end,
+                       stop_after, outcome, t_stop):
+    n = y0.shape[1]
+    nblocks = (n + block - 1) // block
+    for bi in nb.prange(nblocks):
+        lo = bi * block
+        run_block_steps(y0, params, dt, n_steps, lo, min(n, lo + block), cos_min,
+                        observe_every, obs, y_end, stop_after, outcome, t_stop)
+"""
+
+
+def _steps_source(tab: Tableau) -> str:
+    v = range(N_FAST)
+    stages, update = stage_source(tab, N_FAST, " " * 12, lane="[i]")
+    step = _STEP.format(tuple_r=", ".join(f"r{q}[i]" for q in v), stages=stages, update=update)
+    tuple_vb = ", ".join(f"vb[{q}]" for q in range(N_FIXED))
+
+    def observe(ind):
+        return _OBSERVE_LANE.format(ind=ind, tuple_vb=tuple_vb,
+                                    fast="\n".join(f"{ind}ev[{q}] = r{q}[i]" for q in v))
+
+    return _STEPS_TEMPLATE.format(
+        load="\n".join(f"    r{q} = y0[{q}, lo:hi].copy()" for q in v),
+        observe_i=observe(" " * 8), observe_i_deep=observe(" " * 20), step=step,
+        store="\n".join(f"        y_end[{q}, lo + i] = r{q}[i]" for q in v),
+        consts=step_constants(tab, " " * 4))
+
+
 _PARALLEL = '''
 def run_parallel(y0, params, dt, n_steps, block, cos_min, observer_on, observe_every, obs, traj,
                  stride, y_end, stop_after, outcome, t_stop):
@@ -248,6 +377,24 @@ block_record = None
 block_close = None
 """
 
+_STEPS_HEADER = """# generated by ballsurvey.integrate.ensemble from a Butcher tableau; do not edit
+import math
+import numba as nb
+import numpy as np
+from ballsurvey._jit import njit
+from ballsurvey.integrate.outcome import CHART_SINGULAR, NONFINITE
+from ballsurvey.physics.fast import N_FAST, fast_rhs, observed_fixed_from_fast_into
+from ballsurvey.physics.fixed import N_FIXED as NV, rhs_tuple
+
+OBSERVE_GRID = {grid}
+
+# the step observer, handed in by ballsurvey.integrate.binding.bind before anything is compiled
+start = None
+step = None
+span = None
+done = None
+"""
+
 
 def _kernel_module_source(method: str) -> str:
     body = _kernel_source(FIXED_STEP[method]) + _PARALLEL
@@ -264,6 +411,24 @@ def _kernel_module_source(method: str) -> str:
                         "\n@njit(parallel=True, nogil=True, error_model='numpy', cache=True)"
                         "\ndef run_parallel(")
     return _HEADER + body
+
+
+#: the steps on whose multiples a step-observed launch's long observer steps end
+OBSERVE_GRID = 16
+
+
+def _steps_module_source(method: str) -> str:
+    body = _steps_source(FIXED_STEP[method])
+    body = body.replace("\ndef _next_observation(",
+                        "\n@njit(nogil=True, error_model='numpy', cache=True)"
+                        "\ndef _next_observation(")
+    body = body.replace("\ndef run_block_steps(",
+                        "\n@njit(nogil=True, error_model='numpy', cache=True)"
+                        "\ndef run_block_steps(")
+    body = body.replace("\ndef run_parallel_steps(",
+                        "\n@njit(parallel=True, nogil=True, error_model='numpy', cache=True)"
+                        "\ndef run_parallel_steps(")
+    return _STEPS_HEADER.format(grid=OBSERVE_GRID) + body
 
 
 def kernel_module_source(method: str) -> str:
@@ -298,6 +463,18 @@ def make_kernels(method: str, observer: Observer):
     return mod.run_parallel, mod.run_block, mod.run_parallel_refill, mod.run_refill
 
 
+@cache
+def make_step_kernels(method: str, observer: StepObserver):
+    """(run_parallel_steps, run_block_steps) for a fixed-step method named in FIXED_STEP, fed a
+    step observer with a `span` (bound and cached as `make_kernels` does)."""
+    if method not in FIXED_STEP:
+        raise ValueError(f"unknown method {method!r}; known: {', '.join(FIXED_STEP)}")
+    if observer.span is None:
+        raise ValueError("the fixed-step kernel needs a step observer with a span")
+    mod = bind(f"rk_steps_{method}", _steps_module_source(method), observer)
+    return mod.run_parallel_steps, mod.run_block_steps
+
+
 def refill_groups(n: int, lanes: int, parallel: bool) -> int:
     """How many groups a refill kernel's queue of n launches is cut into: several per numba
     thread (so that none waits long for another), none smaller than its lane count; 1 serial.
@@ -309,14 +486,17 @@ def refill_groups(n: int, lanes: int, parallel: bool) -> int:
     return min(max(1, -(-n // int(lanes))), 8 * numba.get_num_threads())
 
 
-def integrate(y0, params, dt, n_steps, method="rk4", *, observer: Observer, n_slots: int,
-              block=64, cos_min=1e-3, observe_every=1, n_rec=0, stride=1, parallel=True,
-              stop_after=0) -> Result:
+def integrate(y0, params, dt, n_steps, method="rk4", *, observer: Observer | StepObserver,
+              n_slots: int, block=64, cos_min=1e-3, observe_every=1, n_rec=0, stride=1,
+              parallel=True, stop_after=0) -> Result:
     """Plain-array entry point.
 
     y0: (N_FAST, n) fast states; params: (3, n) non-dimensional (c, A, B) per launch; dt, n_steps:
-    non-dimensional step and count. `observer` (n_slots slots per launch) sees every
-    `observe_every`-th step and the last; n_slots = 0: no observer. n_rec, stride: keep n_rec
+    non-dimensional step and count. A sampling `observer` (n_slots slots per launch) sees every
+    `observe_every`-th step and the last; n_slots = 0: no observer. A `StepObserver` (with a
+    `span`) sees each launch at its own cadence, as its span allows, the fixed-frame state and
+    rate at both ends of each span (`run_block_steps`; no samples kept, Result.by_steps all
+    True); observe_every is then only the cadence of the checks below. n_rec, stride: keep n_rec
     samples, one every `stride` steps. stop_after > 0: a launch stops once
     `observer.done(obs, i, stop_after)`. A launch whose state turns non-finite, or whose cos(theta)
     drops below cos_min (the Euler form's singularity), is frozen at its last good state, with
@@ -334,8 +514,23 @@ def integrate(y0, params, dt, n_steps, method="rk4", *, observer: Observer, n_sl
     y_end = np.empty_like(y0)
     outcome = np.zeros(n, dtype=np.int8)
     t_stop = np.full(n, np.nan)
-    par, run_block, par_refill, run_refill = make_kernels(method, observer)
     block = int(block)
+    if isinstance(observer, StepObserver):
+        if n_rec > 0:
+            raise ValueError("a step observer keeps no samples (n_rec must be 0)")
+        par, run_block = make_step_kernels(method, observer)
+        args = (float(cos_min), max(1, int(observe_every)), obs, y_end, int(stop_after),
+                outcome, t_stop)
+        if parallel:
+            par(y0, params, float(dt), int(n_steps), block, *args)
+        else:
+            for lo in range(0, n, block):
+                run_block(y0, params, float(dt), int(n_steps), lo, min(n, lo + block), *args)
+        return Result(obs=obs[:n_slots], outcome=outcome, t_stop=t_stop,
+                      formulation=np.full(n, EULER_ANGLES, dtype=np.int8), y_end=y_end,
+                      n_steps=np.full(n, int(n_steps), dtype=np.int64), t=np.empty(0),
+                      traj=traj, by_steps=np.ones(n, dtype=bool))
+    par, run_block, par_refill, run_refill = make_kernels(method, observer)
     if stop_after > 0 and n_rec == 0 and n_slots > 0 and n > 0:
         # period mode: lanes refill from a queue (`run_refill`); groups of launches spread
         # over the threads, several per thread so that none waits long for another

@@ -33,7 +33,9 @@ class Result(NamedTuple):
     obs (n_slots, n): the observer's record; outcome (n,) int8; t_stop (n,): non-dimensional time
     of an early stop (NaN if none); formulation (n,) int8; y_end (N_FAST, n): the final (fast
     Euler view of the) state; n_steps (n,): steps taken (fixed step: the planned count);
-    t (m,), traj: kept samples (ensemble: (m, N_FAST, n); one adaptive launch: (m, N_FAST)).
+    t (m,), traj: kept samples (ensemble: (m, N_FAST, n); one adaptive launch: (m, N_FAST));
+    by_steps (n,) bool or None: launches whose record a step observer made from an Euler-angle
+    integration (its heading's turn is read chart-free, as a fixed-frame run's is).
     """
 
     obs: np.ndarray
@@ -44,3 +46,4 @@ class Result(NamedTuple):
     n_steps: np.ndarray
     t: np.ndarray
     traj: np.ndarray
+    by_steps: np.ndarray | None = None

@@ -12,7 +12,7 @@ import numpy as np
 
 from .._jit import njit
 from .euler import accelerations, centre_velocity
-from .fixed import FX, FY, euler_to_fixed_into, fixed_to_euler_scalars
+from .fixed import BX, BY, BZ, FX, FY, axis_spin_into, euler_to_fixed_into, fixed_to_euler_scalars
 
 N_FAST = 12
 (S_X, S_Y, S_TH, S_CHI, S_PHI, S_THD, S_CHD, S_PHD,
@@ -59,6 +59,17 @@ def fixed_from_fast_into(y, out):
     """Fast Euler state y -> fixed-frame state in `out` (`fixed.euler_to_fixed_into`)."""
     euler_to_fixed_into(y[S_X], y[S_Y], y[S_STH], y[S_CTH], y[S_SCH], y[S_CCH], y[S_PHI],
                         y[S_THD], y[S_CHD], y[S_PHD], out)
+
+
+@jit
+def observed_fixed_from_fast_into(y, out):
+    """`fixed_from_fast_into` without the body vector b (left 0): an observer of the path and
+    the axis reads e, w and G only, and b would cost the sine and cosine of phi."""
+    axis_spin_into(y[S_X], y[S_Y], y[S_STH], y[S_CTH], y[S_SCH], y[S_CCH], y[S_THD], y[S_CHD],
+                   y[S_PHD], out)
+    out[BX] = 0.0
+    out[BY] = 0.0
+    out[BZ] = 0.0
 
 
 @jit

@@ -245,14 +245,22 @@ def invariants(v, dv, c, A, B):
 def euler_to_fixed_into(x, y, sth, cth, sch, cch, ph, thd, chd, phd, out):
     """Euler state (Eq. 43, with sin and cos of theta and chi given) -> fixed-frame state in
     `out`. Eq. (3) gives the frame xi, eta, zeta; Eq. (1) the angular velocity."""
+    axis_spin_into(x, y, sth, cth, sch, cch, thd, chd, phd, out)
+    # phi is the angle of the body about eta, from xi (right-handed about eta: xi -> -zeta)
+    cph, sph = math.cos(ph), math.sin(ph)
+    ze0, ze1, ze2 = -sth * sch, sth * cch, cth
+    out[BX], out[BY], out[BZ] = cph * cch - sph * ze0, cph * sch - sph * ze1, -sph * ze2
+
+
+@jit
+def axis_spin_into(x, y, sth, cth, sch, cch, thd, chd, phd, out):
+    """`euler_to_fixed_into` but the body vector b (which needs phi): G, the axis e and the
+    angular velocity w into `out`, b left as it is."""
     xi0, xi1 = cch, sch
     et0, et1, et2 = -cth * sch, cth * cch, -sth
     ze0, ze1, ze2 = -sth * sch, sth * cch, cth
-    # phi is the angle of the body about eta, from xi (right-handed about eta: xi -> -zeta)
-    cph, sph = math.cos(ph), math.sin(ph)
     out[FX], out[FY] = x, y
     out[EX], out[EY], out[EZ] = et0, et1, et2
-    out[BX], out[BY], out[BZ] = cph * xi0 - sph * ze0, cph * xi1 - sph * ze1, -sph * ze2
     weta = phd - chd * sth
     out[WX] = -thd * xi0 + weta * et0 + chd * cth * ze0
     out[WY] = -thd * xi1 + weta * et1 + chd * cth * ze1

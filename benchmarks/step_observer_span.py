@@ -1,0 +1,103 @@
+"""The fixed-step maps' observer: the step observer at each launch's own spans against the sampling
+observer every `observe_every` steps, on the same RK4 steps: cost above the bare kernel and
+accuracy against the quadrature (an independent formulation: every launch from its invariants).
+
+Launches: a spec's (default the square map, 1845 launches, T = 20 s, dt = 1e-4 s). The three
+kernels (bare: no observer; sampling; steps) are timed in turns, best of `--repeats`, warm, on
+numba's threads, so the machine's noise hits them alike. Accuracy: the labelled fields of both
+observers (the map's fixed-frame fallback included) against `method = "quadrature"` on the same
+launches, over those with a shape that the Euler chart carried. Needs only ballsurvey:
+
+    python benchmarks/step_observer_span.py [--spec sweeps/square-map.toml] [--repeats 3]
+"""
+from __future__ import annotations
+
+import argparse
+import time
+
+import numba
+import numpy as np
+
+from ballsurvey.classify.labels import CODE, SHAPES
+from ballsurvey.classify.observer import N_OBS
+from ballsurvey.compose import (
+    FIXED_STEP_OBSERVER,
+    OBSERVER,
+    classify,
+    fixed_frame_fallback,
+    launch_arrays,
+    run_launches,
+)
+from ballsurvey.integrate import ensemble
+from ballsurvey.sweep.plan import launch_table
+from ballsurvey.sweep.spec import load_spec
+from ballsurvey.units import StepPlan
+
+FIELDS = (("turn_per_cycle_deg", "deg", False), ("theta_max_deg", "deg", False),
+          ("theta_min_deg", "deg", False), ("roundness", "", False),
+          ("theta_period_s", "relative", True), ("corner_sharpness", "relative", True))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--spec", default="sweeps/square-map.toml")
+    ap.add_argument("--repeats", type=int, default=3)
+    args = ap.parse_args()
+    spec = load_spec(args.spec)
+    y0, p, tu, flat = launch_arrays(launch_table(spec, 0, spec.n_launches))
+    plan = StepPlan(spec.T, spec.dt, tu)
+    every = spec.observe_every
+
+    def run(observer, n_slots):
+        return ensemble.integrate(y0, p, plan.dt_nd, plan.n_steps, spec.method,
+                                  observer=observer, n_slots=n_slots, block=spec.block,
+                                  observe_every=every)
+
+    kernels = {"bare kernel": (OBSERVER, 0), f"sampling, every {every} steps": (OBSERVER, N_OBS),
+               "steps, own spans (the map's)": (FIXED_STEP_OBSERVER, N_OBS)}
+    for observer, n_slots in kernels.values():  # compile or load
+        ensemble.integrate(y0[:, :2], p[:, :2], plan.dt_nd, 10, spec.method, observer=observer,
+                           n_slots=n_slots)
+    best = {k: np.inf for k in kernels}
+    results = {}
+    for _ in range(args.repeats):
+        for name, (observer, n_slots) in kernels.items():
+            t = time.perf_counter()
+            results[name] = run(observer, n_slots)
+            best[name] = min(best[name], time.perf_counter() - t)
+    print(f"{args.spec}: {y0.shape[1]} launches x {plan.n_steps} {spec.method} steps, "
+          f"{numba.get_num_threads()} numba threads, best of {args.repeats}")
+    bare = best["bare kernel"]
+    for name, t in best.items():
+        extra = "" if name == "bare kernel" else f"  (+{100 * (t / bare - 1):.0f} % of the bare)"
+        print(f"  {name:32s} {t:6.2f} s{extra}")
+
+    q = classify(run_launches(y0, p, plan, "quadrature"), flat)
+    labelled = {}
+    for name in list(kernels)[1:]:
+        res = results[name]
+        fixed_frame_fallback(y0, p, plan.T_nd, res)
+        labelled[name] = classify(res, flat)
+    first = next(iter(labelled.values()))
+    shaped = np.isin(first["label"], [CODE[w] for w in SHAPES]) & (first["formulation"] == 0)
+    print(f"against the quadrature, {shaped.sum()} launches with a shape in the Euler chart "
+          f"(largest difference):")
+    print(f"  {'':24s}" + "".join(f"{n.split(',')[0]:>12s}" for n in labelled))
+    for field, unit, rel in FIELDS:
+        row = []
+        for f in labelled.values():
+            d = np.abs(f[field] - q[field])[shaped]
+            if rel:
+                d = d / np.abs(q[field][shaped])
+            row.append(f"{np.nanmax(d):12.2g}")
+        print(f"  {field + (' (' + unit + ')' if unit else ''):24s}" + "".join(row))
+    for name, f in labelled.items():
+        same = np.mean(f["label"] == q["label"])
+        spc = f["samples_per_cycle"][shaped]
+        print(f"  {name.split(',')[0]}: labels as the quadrature's on {100 * same:.2f} %, "
+              f"points a theta cycle {np.nanmin(spc):.0f} (least) {np.nanmedian(spc):.0f} "
+              f"(median)")
+
+
+if __name__ == "__main__":
+    main()
