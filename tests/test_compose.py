@@ -30,8 +30,7 @@ def _near_vertical():
 def test_defect_failed_fixed_frame_rerun_is_stored_as_fixed_frame(monkeypatch):
     # before: a fixed-frame re-run that failed kept the Euler run's `formulation = euler_angles`
     # (the observer's status slot carried both facts) and was labelled `singular`
-    monkeypatch.setattr(compose.lanes, "integrate_observed",
-                        partial(compose.lanes.integrate_observed, max_steps=20))
+    monkeypatch.setattr(compose, "integrate_adaptive", partial(integrate_adaptive, max_steps=20))
     res = compose.run_launches(_near_vertical(), P[:, None], StepPlan(3.0, 2e-4, TU))
     assert res.formulation[0] == oc.FIXED_FRAME
     assert res.outcome[0] == oc.STEP_BUDGET and 0 < res.t_stop[0] < 3.0 / TU

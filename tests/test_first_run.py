@@ -67,18 +67,18 @@ class Listener(event.Listener):
     def on_end(self, ev):
         pass
 from ballsurvey import compose
-from ballsurvey.integrate.lanes import make_observed_kernels
+from ballsurvey.integrate.adaptive import make_kernels
 compose.idle_core = lambda: True  # as on a quiet machine, whatever the load of this one
-_, serial = make_observed_kernels(compose.QUADRATURE_FALLBACK, compose.STEP_OBSERVER)
-before = compose.cached_on_disk(serial)
+mod = make_kernels(compose.OBSERVER)
+before = compose.cached_on_disk(mod.adaptive_one)
 compose.prefetch_fallback(False)
 started = len(compose._HELPER)
 compose.await_prefetch()
-after = compose.cached_on_disk(serial)
+after = compose.cached_on_disk(mod.adaptive_one)
 compose.prefetch_fallback(False)
 again = len(compose._HELPER)
 with event.install_listener("numba:compile", Listener()):
-    compose.warm_fallback(np.array([0.1, 0.4, 0.4]), (False,))
+    compose.warm_fallback(np.array([0.1, 0.4, 0.4]), (False,), quadrature=False)
 print(json.dumps(dict(before=before, started=started, after=after, again=again,
                       compiled=compiled)))
 """
@@ -99,23 +99,18 @@ def test_cold_cache_fallback_is_compiled_by_a_helper_and_loaded_here(tmp_path):
 
 
 def test_fallback_kernel_has_one_signature_for_every_caller():
-    # the fixed-frame re-run of a map's launches and the quadrature map's integrator share one
-    # compiled kernel (what the helper compiles is what both load)
     from ballsurvey import compose
-    from ballsurvey.compose import StepPlan
-    from ballsurvey.integrate.lanes import make_observed_kernels
+    from ballsurvey.integrate.adaptive import make_kernels, trajectory_adaptive
     from ballsurvey.physics.fast import fast_state
 
     p = np.repeat(np.array([[0.1], [0.4], [0.4]]), 3, axis=1)
-    # the last launch rocks in a plane, which the quadrature leaves to the integrator
-    y0 = fast_state(0.0, 0.0, np.radians([10.0, 20.0, 30.0]), 0.0, 0.0, 0.0,
-                    np.array([1.0, 1.0, 0.0]), np.array([-1.0, -1.0, 0.0]))
+    y0 = fast_state(0.0, 0.0, np.radians([10.0, 20.0, 30.0]), 0.0, 0.0, 0.0, 1.0, -1.0)
     for parallel in (True, False):
         compose._fixed_frame(y0, p, 1e-3, parallel=parallel)
-        r = compose.by_quadrature(y0, p, StepPlan(0.01, 1e-3, 1.0), parallel=parallel)
-        assert r.formulation[2] == compose.oc.FIXED_FRAME
-    par, ser = make_observed_kernels(compose.QUADRATURE_FALLBACK, compose.STEP_OBSERVER)
-    assert len(par.signatures) == 1 and len(ser.signatures) == 1
+    trajectory_adaptive(y0[:, 0], p[:, 0], 1e-3, t_out=np.linspace(0, 1e-3, 3), **{
+        k: v for k, v in compose.FALLBACK.items() if k != "observer" and k != "n_slots"},
+        observer=compose.OBSERVER, n_slots=compose.N_OBS)
+    assert len(make_kernels(compose.OBSERVER).adaptive_one.signatures) == 1
 
 
 def test_a_core_to_spare_is_measured_from_the_cores_idle_time():

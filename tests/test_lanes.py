@@ -240,7 +240,7 @@ def test_the_lane_trial_loop_is_vectorised(kernel):
         y0 = launch_state(np.full(n, -5.0), 0.0, 4.05, -3.0, Ball.paper().time_unit)
 
         def call(mod):
-            mod.run_serial(y0, p, 0.05, 1e-9, 1e-12, 1e-3, np.inf, 1000, n, 1, 0,
+            mod.run_serial(y0, p, 0.05, 1e-9, 1e-12, 1e-3, 1000, n, 1, 0,
                            np.full((N_OBS, n), np.nan), np.empty((fixed.N_FIXED, n)),
                            np.zeros(n, np.int64), np.zeros(n, np.int8), np.zeros(n))
             return mod.run_group

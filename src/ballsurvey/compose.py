@@ -44,6 +44,7 @@ from .classify.step_observer import observe_start, observe_step, step_span
 from .integrate import ensemble, lanes
 from .integrate import outcome as oc
 from .integrate.adaptive import integrate_adaptive, trajectory_adaptive
+from .integrate.adaptive import make_kernels as adaptive_kernels
 from .integrate.binding import Observer, StepObserver
 from .integrate.tableaus import ADAPTIVE, FIXED_STEP, LANE_ADAPTIVE
 from .units import StepPlan, fields_to_si, launch_state
@@ -85,29 +86,17 @@ QUADRATURE_FALLBACK = "dop853"
 MAP_METHODS = METHODS + tuple(LANE_ADAPTIVE) + (QUADRATURE,)
 #: the methods a map can run on the GPU (backend "cuda")
 CUDA_METHODS = tuple(FIXED_STEP) + (QUADRATURE,)
-#: the fixed-frame re-run of a single trajectory (`run_trajectory`): the scalar adaptive pair with
-#: dense output, the sampling observer on its steps
 FALLBACK_RTOL = 1e-10
 FALLBACK_ATOL = 1e-12
-FALLBACK_H_INIT = 1e-3  #: the fixed-frame re-runs' first trial step (non-dimensional)
-#: the fixed-frame re-runs' longest step (non-dimensional; 5.3 ms for the paper's ball): their
-#: observers see each accepted step, and a slow launch (a ball rocking a hair from the upright)
+FALLBACK_H_INIT = 1e-3  #: the fixed-frame re-run's first trial step (non-dimensional)
+#: the fixed-frame re-run's longest step (non-dimensional; 5.3 ms for the paper's ball): the
+#: observer sees each accepted step, and a slow launch (a ball rocking a hair from the upright)
 #: would otherwise take a handful of steps a theta cycle, too few to see its shape
 FALLBACK_H_MAX = 0.1
-#: the fixed-frame re-run of a map's launches (`fixed_frame_fallback`): the QUADRATURE_FALLBACK
-#: pair on SIMD lanes with the step observer, at these tolerances. On the square map's 91 re-run
-#: launches (theta max up to 89.988 deg), against the quadrature: turn per cycle within 2e-8 deg,
-#: theta max and min within 1e-7 and 5e-7 deg, roundness within 9e-7, in 0.017 s on two threads
-#: (the scalar pair above with the sampling observer: 5e-8 deg, 1.5e-7 and 4e-9 deg, 5e-5, in
-#: 0.14 s)
-FALLBACK_LANES_RTOL = 1e-11
-FALLBACK_LANES_ATOL = 1e-13
-#: ... and their longest step (non-dimensional, 25 ms for the paper's ball: a ball rocking a hair
-#: from the upright, a theta cycle of 10, gets 20 steps a cycle, 60 points, and its line)
-FALLBACK_LANES_H_MAX = 0.5
 #: the fixed-frame fallback of a parallel run runs its launches in parallel (numba threads) from
-#: this many on; a serial run (a small map, a dask worker) never compiles the parallel driver,
-#: and the results are the same
+#: this many on (a map's units hand it a few each: the square map's 91 in units of 128 launches
+#: took 0.55-0.67 s on one thread, 0.42-0.51 s on two); a serial run (a small map, a dask
+#: worker) never compiles the parallel driver, and the results are the same
 FALLBACK_PARALLEL_MIN = 2
 #: a launch that blew up after its tilt passed this (rad) is taken to have met the Euler chart's
 #: singularity (chidot ~ 1 / cos theta outruns the fixed step), not a step too large
@@ -153,13 +142,9 @@ FALLBACK = dict(rtol=FALLBACK_RTOL, atol=FALLBACK_ATOL, observer=OBSERVER, n_slo
 
 
 def _fixed_frame(y0, params, T_nd, *, parallel, stop_after=0) -> oc.Result:
-    """The fallback's integration of a map's launches: in the fixed frame, by the adaptive pair
-    QUADRATURE_FALLBACK on SIMD lanes with the step observer on its steps."""
-    return lanes.integrate_observed(y0, params, T_nd, FALLBACK_LANES_RTOL, FALLBACK_LANES_ATOL,
-                                    observer=STEP_OBSERVER, n_slots=N_OBS,
-                                    method=QUADRATURE_FALLBACK, h_init=FALLBACK_H_INIT,
-                                    h_max=FALLBACK_LANES_H_MAX, parallel=parallel,
-                                    stop_after=stop_after)
+    """The fallback's integration: adaptive, in the fixed frame, observed."""
+    return integrate_adaptive(y0, params, T_nd, parallel=parallel, stop_after=stop_after,
+                              **FALLBACK)
 
 
 def fixed_frame_fallback(y0, params, T_nd, res: oc.Result, *, thresholds=Thresholds(),
@@ -178,17 +163,21 @@ def fixed_frame_fallback(y0, params, T_nd, res: oc.Result, *, thresholds=Thresho
     return bad
 
 
-def warm_fallback(params_col, parallels=(True, False)) -> None:
-    """Compile (or load from the disk cache) the fallback kernel (the fixed-frame re-run's, which
-    is also the quadrature map's integrator), parallel and serial (`parallels`), on two short
-    launches: a benchmark's warm-up run rarely has a launch that needs it, and its first
-    compilation would be timed as fallback."""
+def warm_fallback(params_col, parallels=(True, False), quadrature: bool = True) -> None:
+    """Compile (or load from the disk cache) the fallback kernels (the fixed-frame re-run's and,
+    with `quadrature`, the quadrature map's integrator), parallel and serial (`parallels`), on
+    two short launches: a benchmark's warm-up run rarely has a launch that needs them, and their
+    first compilation would be timed as fallback."""
     from .physics.fast import fast_state
 
     y0 = fast_state(0.0, 0.0, np.radians([10.0, 20.0]), 0.0, 0.0, 0.0, 1.0, -1.0)
     p = np.repeat(np.asarray(params_col, dtype=float).reshape(3, 1), 2, axis=1)
     for parallel in parallels:
-        _fixed_frame(y0, p, 1e-3, parallel=parallel, stop_after=3)
+        _fixed_frame(y0, p, 1e-3, parallel=parallel)
+        if quadrature:
+            lanes.integrate_observed(y0, p, 1e-3, observer=STEP_OBSERVER, n_slots=N_OBS,
+                                     method=QUADRATURE_FALLBACK, parallel=parallel,
+                                     stop_after=3)
 
 
 #: the helper process compiling the fixed-frame fallback beside this one (`prefetch_fallback`)
@@ -269,8 +258,8 @@ def prefetch_fallback(parallel: bool) -> None:
 
     if _HELPER or numba.get_num_threads() < 2:
         return
-    par, ser = lanes.make_observed_kernels(QUADRATURE_FALLBACK, STEP_OBSERVER)
-    if cached_on_disk(ser) and (not parallel or cached_on_disk(par)):
+    mod = adaptive_kernels(OBSERVER)
+    if cached_on_disk(mod.adaptive_one) and (not parallel or cached_on_disk(mod.run_parallel)):
         return
     if not idle_core():  # asked only where there is something to compile
         return
@@ -278,7 +267,7 @@ def prefetch_fallback(parallel: bool) -> None:
     path = os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")]))
     parallels = (False, True) if parallel else (False,)
     code = ("from ballsurvey.ball import Ball; from ballsurvey.compose import warm_fallback; "
-            f"warm_fallback(Ball.paper().nondim_params(), {parallels})")
+            f"warm_fallback(Ball.paper().nondim_params(), {parallels}, quadrature=False)")
     _HELPER.append(subprocess.Popen([sys.executable, "-c", code],
                                     env=dict(os.environ, PYTHONPATH=path),
                                     stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,

@@ -69,7 +69,7 @@ SLOTS = (
     "thd0", "thdd0",
     "p_sth", "p_cth", "p_chd", "p_u", "p_w", "p_psid", "psi_last",
     "acc_nsamp", "cyc_nsamp", "hd_sum", "hd_n", "p_phd", "th_step_max", "p_th",
-    "p_ax", "p_ay", "p_ezdd", "p_speed", "span_rate",
+    "p_ax", "p_ay", "p_ezdd", "p_speed", "span_rate2",
 )
 N_OBS = len(SLOTS)
 (O_TH_MIN, O_TH_MAX, O_E0, O_J0, O_R0, O_DE, O_DJ, O_DR, O_FRIC, O_NMIN,
@@ -83,7 +83,7 @@ N_OBS = len(SLOTS)
  O_THD0, O_THDD0,
  O_P_STH, O_P_CTH, O_P_CHD, O_P_U, O_P_W, O_P_PSID, O_PSIL,
  O_A_NSAMP, O_C_NSAMP, O_HD_SUM, O_HD_N, O_P_PHD, O_TH_STEP, O_P_TH,
- O_P_AX, O_P_AY, O_P_EZDD, O_P_SPEED, O_SPAN_W) = range(N_OBS)
+ O_P_AX, O_P_AY, O_P_EZDD, O_P_SPEED, O_SPAN_W2) = range(N_OBS)
 
 jit = njit(cache=True, nogil=True, error_model="numpy")  # stamped cache: _jit.py
 #: for the per-sample arithmetic: numba inlines it into every caller, so that `record_block`'s

@@ -115,19 +115,21 @@ def step_span(obs, i, ya, fa, yb, fb):
     step's end. For a kernel whose own steps are short (fixed step), which observes every so many
     of them (benchmarks/step_observer_span.py measures the records against the sampling observer
     and the quadrature)."""
-    rate = math.sqrt(fb[EX] * fb[EX] + fb[EY] * fb[EY] + fb[EZ] * fb[EZ])
+    # the rates squared: one square root for the three
+    rate2 = fb[EX] * fb[EX] + fb[EY] * fb[EY] + fb[EZ] * fb[EZ]
     ax, ay, speed = obs[ob.O_P_AX, i], obs[ob.O_P_AY, i], obs[ob.O_P_SPEED, i]
-    rate = max(rate, math.sqrt(ax * ax + ay * ay) / max(speed, SPAN_SPEED_FLOOR))
+    floor = max(speed, SPAN_SPEED_FLOOR)
+    rate2 = max(rate2, (ax * ax + ay * ay) / (floor * floor))
     ezdd = obs[ob.O_P_EZDD, i]
     dez = yb[EZ] - ya[EZ]
     if dez != 0.0:
         w2 = -(ezdd - _axis_acceleration(ya, fa)[2]) / dez
         if w2 > 0.0 and w2 < math.inf:
-            obs[ob.O_SPAN_W, i] = math.sqrt(w2)
-    w = obs[ob.O_SPAN_W, i]
-    if w > rate:  # NaN until known
-        rate = w
-    span = STEP_ANGLE / rate if rate > 0.0 else math.inf
+            obs[ob.O_SPAN_W2, i] = w2
+    w2 = obs[ob.O_SPAN_W2, i]
+    if w2 > rate2:  # NaN until known
+        rate2 = w2
+    span = STEP_ANGLE / math.sqrt(rate2) if rate2 > 0.0 else math.inf
     n_cyc = obs[ob.O_NMAX, i] - 1.0
     if n_cyc >= 1.0:
         span = min(span, STEP_CYCLE_FRACTION * (obs[ob.O_TL, i] - obs[ob.O_T1, i]) / n_cyc)

@@ -241,8 +241,8 @@ def kernel_module_source(tab: LaneTableau) -> str:
 
 _OBSERVED = """
 @njit(nogil=True, error_model='numpy', cache=True)
-def run_group(u0, params, T, rtol, atol, h0, h_max, max_steps, lo, hi, lanes, stop_after, obs,
-              v_end, n_acc_out, status_out, t_out):
+def run_group(u0, params, T, rtol, atol, h0, max_steps, lo, hi, lanes, stop_after, obs, v_end,
+              n_acc_out, status_out, t_out):
     # launches lo..hi-1 through `lanes` lanes: a lane whose launch ends takes the next at once
     m = min(lanes, hi - lo)
 {alloc}
@@ -292,7 +292,7 @@ def run_group(u0, params, T, rtol, atol, h0, h_max, max_steps, lo, hi, lanes, st
                     dv[q] = k0[q]
                 start(obs_l, i, vv, dv, pp[0], pp[1], pp[2])
                 tl[i] = 0.0
-                hl[i] = min(max(h0, 1e3 * floor), T, h_max)
+                hl[i] = min(max(h0, 1e3 * floor), T)
                 nacc[i] = 0
                 ntry[i] = 0
                 idx[i] = j
@@ -322,8 +322,6 @@ def run_group(u0, params, T, rtol, atol, h0, h_max, max_steps, lo, hi, lanes, st
 {ends}
                 step(obs_l, i, t_prev[i], tl[i] - t_prev[i], ya, fa, yb, fb, pc[i], pa[i], pb[i],
                      tl[i] >= T)
-                if hl[i] > h_max:  # the longest step the caller lets the observer see
-                    hl[i] = h_max
                 if stop_after > 0 and done(obs_l, i, stop_after):
                     finished = True
             if status != 0 or finished or tl[i] >= T:
@@ -340,22 +338,22 @@ def run_group(u0, params, T, rtol, atol, h0, h_max, max_steps, lo, hi, lanes, st
 
 
 @njit(parallel=True, nogil=True, error_model='numpy', cache=True)
-def run_parallel(u0, params, T, rtol, atol, h0, h_max, max_steps, lanes, groups, stop_after,
-                 obs, v_end, n_acc, status, t_out):
+def run_parallel(u0, params, T, rtol, atol, h0, max_steps, lanes, groups, stop_after, obs,
+                 v_end, n_acc, status, t_out):
     n = u0.shape[1]
     size = (n + groups - 1) // groups
     for g in nb.prange(groups):
         lo = g * size
         if lo < n:
-            run_group(u0, params, T, rtol, atol, h0, h_max, max_steps, lo, min(n, lo + size),
-                      lanes, stop_after, obs, v_end, n_acc, status, t_out)
+            run_group(u0, params, T, rtol, atol, h0, max_steps, lo, min(n, lo + size), lanes,
+                      stop_after, obs, v_end, n_acc, status, t_out)
 
 
 @njit(nogil=True, error_model='numpy', cache=True)
-def run_serial(u0, params, T, rtol, atol, h0, h_max, max_steps, lanes, groups, stop_after,
-               obs, v_end, n_acc, status, t_out):
-    run_group(u0, params, T, rtol, atol, h0, h_max, max_steps, 0, u0.shape[1], lanes,
-              stop_after, obs, v_end, n_acc, status, t_out)
+def run_serial(u0, params, T, rtol, atol, h0, max_steps, lanes, groups, stop_after, obs,
+               v_end, n_acc, status, t_out):
+    run_group(u0, params, T, rtol, atol, h0, max_steps, 0, u0.shape[1], lanes, stop_after,
+              obs, v_end, n_acc, status, t_out)
 """
 
 _OBSERVED_HEADER = """
@@ -502,14 +500,13 @@ def make_observed_kernels(method: str, observer: StepObserver):
 
 
 def integrate_observed(y0, params, T, rtol=1e-9, atol=1e-12, *, observer: StepObserver,
-                       n_slots: int, method="dop853", lanes=64, h_init=1e-3, h_max=math.inf,
+                       n_slots: int, method="dop853", lanes=64, h_init=1e-3,
                        max_steps=10_000_000, parallel=True, stop_after=0) -> Result:
     """`integrate_lanes` with a step observer: `observer.start` sees each launch's fixed-frame
     state and rate at t = 0, `observer.step` each accepted step (its start time and length, the
     states and rates at both ends: what the step's cubic Hermite interpolant is made of), so the
     observer's cost follows the steps. T = 0: the launch is observed and nothing stepped (h_init
-    is then not read). h_max: the longest step (non-dimensional: over a slow, smooth motion the
-    pair would take a handful of steps a cycle, too few for the observer's interpolants).
+    is then not read).
 
     Lanes refill from a queue: a lane whose launch reaches T, fails, or (stop_after > 0, period
     mode) has `observer.done(obs, i, stop_after)` takes the next launch at once. Each launch's
@@ -530,8 +527,8 @@ def integrate_observed(y0, params, T, rtol=1e-9, atol=1e-12, *, observer: StepOb
     groups = refill_groups(n, lanes, parallel)
     if n > 0:
         (par if parallel else ser)(y0, params, float(T), float(rtol), float(atol), float(h_init),
-                                   float(h_max), int(max_steps), lanes, groups, int(stop_after),
-                                   obs, v_end, n_acc, status, t_end)
+                                   int(max_steps), lanes, groups, int(stop_after), obs, v_end,
+                                   n_acc, status, t_end)
     y_end = np.full((N_FAST, n), np.nan)
     fast_columns(v_end, y_end)
     return Result(obs=obs[:n_slots], outcome=status,
