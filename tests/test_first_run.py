@@ -69,7 +69,7 @@ class Listener(event.Listener):
 from ballsurvey import compose
 from ballsurvey.integrate.adaptive import make_kernels
 compose.idle_core = lambda: True  # as on a quiet machine, whatever the load of this one
-mod = make_kernels(compose.OBSERVER)
+mod = make_kernels(compose.STEP_OBSERVER)
 before = compose.cached_on_disk(mod.adaptive_one)
 compose.prefetch_fallback(False)
 started = len(compose._HELPER)
@@ -110,6 +110,8 @@ def test_fallback_kernel_has_one_signature_for_every_caller():
     trajectory_adaptive(y0[:, 0], p[:, 0], 1e-3, t_out=np.linspace(0, 1e-3, 3), **{
         k: v for k, v in compose.FALLBACK.items() if k != "observer" and k != "n_slots"},
         observer=compose.OBSERVER, n_slots=compose.N_OBS)
+    # the map's re-run (step observer) and the trajectory's (sampling observer): one each
+    assert len(make_kernels(compose.STEP_OBSERVER).adaptive_one.signatures) == 1
     assert len(make_kernels(compose.OBSERVER).adaptive_one.signatures) == 1
 
 

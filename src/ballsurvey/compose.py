@@ -142,9 +142,11 @@ FALLBACK = dict(rtol=FALLBACK_RTOL, atol=FALLBACK_ATOL, observer=OBSERVER, n_slo
 
 
 def _fixed_frame(y0, params, T_nd, *, parallel, stop_after=0) -> oc.Result:
-    """The fallback's integration: adaptive, in the fixed frame, observed."""
+    """The fallback's integration of a map's launches: adaptive, in the fixed frame, with the
+    step observer on each accepted step (a single trajectory's re-run keeps FALLBACK's sampling
+    observer, which its samples need)."""
     return integrate_adaptive(y0, params, T_nd, parallel=parallel, stop_after=stop_after,
-                              **FALLBACK)
+                              **dict(FALLBACK, observer=STEP_OBSERVER))
 
 
 def fixed_frame_fallback(y0, params, T_nd, res: oc.Result, *, thresholds=Thresholds(),
@@ -258,7 +260,7 @@ def prefetch_fallback(parallel: bool) -> None:
 
     if _HELPER or numba.get_num_threads() < 2:
         return
-    mod = adaptive_kernels(OBSERVER)
+    mod = adaptive_kernels(STEP_OBSERVER)
     if cached_on_disk(mod.adaptive_one) and (not parallel or cached_on_disk(mod.run_parallel)):
         return
     if not idle_core():  # asked only where there is something to compile
@@ -298,10 +300,11 @@ def run_launches(y0, params, plan: StepPlan, method="rk4", *, rtol=1e-9, atol=1e
                  thresholds: Thresholds = Thresholds(), backend: str = "cpu") -> oc.Result:
     """Integrate fast-state launches for plan.T_nd, observed; returns the integrators' Result.
 
-    method: a fixed-step tableau (plan.n_steps steps of plan.dt_nd), "dopri5"/"adaptive" (rtol,
-    atol; first trial step plan.h_init_nd) or "dop853" (the pair on SIMD lanes, in the fixed
-    frame: `lanes.integrate_observed`, with the step observer on each accepted step, so
-    observe_every does not apply, and no fallback, which it never needs). cycles > 0
+    method: a fixed-step tableau (plan.n_steps steps of plan.dt_nd; the step observer at each
+    launch's own spans, observe_every the cadence of the kernel's checks), "dopri5"/"adaptive"
+    (rtol, atol; first trial step plan.h_init_nd; the step observer on each accepted step) or
+    "dop853" (the pair on SIMD lanes, in the fixed frame: `lanes.integrate_observed`, with the
+    step observer on each accepted step, and no fallback, which it never needs). cycles > 0
     (period mode): each launch stops once the observer has seen that many complete theta
     cycles; T is then the longest it may run.
     fallback: launches `needs_fallback` names (with `thresholds`) are run again in the fixed
@@ -326,7 +329,7 @@ def run_launches(y0, params, plan: StepPlan, method="rk4", *, rtol=1e-9, atol=1e
                                  observer=FIXED_STEP_OBSERVER, n_slots=N_OBS, block=block,
                                  observe_every=observe_every, parallel=parallel, stop_after=stop)
     elif method in ADAPTIVE:
-        res = integrate_adaptive(y0, params, plan.T_nd, rtol, atol, observer=OBSERVER,
+        res = integrate_adaptive(y0, params, plan.T_nd, rtol, atol, observer=STEP_OBSERVER,
                                  n_slots=N_OBS, h_init=plan.h_init_nd, parallel=parallel,
                                  tableau=ADAPTIVE[method], stop_after=stop)
     elif method in LANE_ADAPTIVE:

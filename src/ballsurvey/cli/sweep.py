@@ -222,8 +222,8 @@ def sweep_summary(path, n_launches: int, report: dict) -> str:
                                                                      else "")]
     if sparse:
         lines.append(f"  unresolved for too few observer samples per theta cycle (under "
-                     f"{floor:g}): {sparse}; lower [run] dt (fixed step), observe_every (dopri5) "
-                     f"or rtol (dopri5, dop853)")
+                     f"{floor:g}): {sparse}; lower [run] dt (fixed step) or rtol (dopri5, "
+                     f"dop853)")
     if fallback is not None and by_quadrature:
         lines.append(f"  integrated (dop853) where the quadrature cannot go (tilt through the "
                      f"vertical, launched steady, not converged): {fallback}")

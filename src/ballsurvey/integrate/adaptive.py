@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..physics.fast import N_FAST
-from .binding import Observer, bind
+from .binding import Observer, StepObserver, bind
 from .outcome import EULER_ANGLES, FIXED_FRAME, OK, Result
 from .tableaus import ADAPTIVE, DOPRI5, EmbeddedTableau
 
@@ -31,9 +31,17 @@ MAX_STEPS = 50_000_000
 
 
 @cache
-def make_kernels(observer: Observer):
-    """The adaptive kernel module (adaptive_kernel.py) bound to `observer`."""
-    return bind("adaptive", (Path(__file__).parent / "adaptive_kernel.py").read_text(), observer)
+def make_kernels(observer: Observer | StepObserver):
+    """The adaptive kernel module (adaptive_kernel.py) bound to `observer`: a sampling one
+    (`record` on each accepted step, in the Euler view) or a step observer (`start`, and `step`
+    with each accepted step's fixed-frame states and rates at its two ends)."""
+    text = (Path(__file__).parent / "adaptive_kernel.py").read_text()
+    if isinstance(observer, StepObserver):
+        marker = "OBSERVE_STEPS = False"
+        assert text.count(marker) == 1
+        return bind("adaptive_steps", text.replace(marker, "OBSERVE_STEPS = True"),
+                    observer._replace(span=None))
+    return bind("adaptive", text, observer)
 
 
 def _tol(tableau, rtol, atol, h_init, cos_min, h_max=np.inf):
@@ -92,7 +100,8 @@ def integrate_adaptive(y0, params, T, rtol=1e-9, atol=1e-12, *, observer: Observ
     form = FIXED_FRAME if fixed_frame else EULER_ANGLES
     return Result(obs=obs, outcome=outcome, t_stop=t_stop,
                   formulation=np.full(n, form, dtype=np.int8), y_end=y_end, n_steps=steps,
-                  t=np.empty(0), traj=np.empty((0, N_FAST)))
+                  t=np.empty(0), traj=np.empty((0, N_FAST)),
+                  by_steps=np.full(n, isinstance(observer, StepObserver)))
 
 
 def trajectory_adaptive(y0_col, params_col, T, rtol=1e-9, atol=1e-12, *, observer: Observer,

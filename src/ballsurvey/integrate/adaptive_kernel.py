@@ -1,8 +1,10 @@
 """Template of the adaptive kernel module (bound to an observer by `binding.bind`; see adaptive.py).
 
 Never imported as itself: `adaptive.make_kernels` writes this text, with the observer's identity,
-into a module in the cache directory and sets `record` and `done` there. Imports are absolute for
-that reason.
+into a module in the cache directory and sets `record` and `done` there (a sampling observer),
+or `start`, `step` and `done` (a step observer: OBSERVE_STEPS is then True in the text, and each
+accepted step's fixed-frame states and rates at its two ends are handed to `step`). Imports are
+absolute for that reason.
 
 Dormand-Prince with FSAL and its dense output, one launch per call, its own step size. Error
 control: RMS over the checked variables of err / (atol + rtol max(|y|, |y_new|)); the step-size rule
@@ -27,11 +29,16 @@ from ballsurvey.physics.fast import (
     fast_from_fixed_into,
     fast_rhs_into,
     fixed_from_fast_into,
+    observed_fixed_from_fast_into,
 )
 
 # the observer, handed in by ballsurvey.integrate.binding.bind before anything is compiled
 record = None
 done = None
+start = None
+step = None
+#: a step observer is bound (the text is written with True by `adaptive.make_kernels`)
+OBSERVE_STEPS = False
 
 SAFETY = 0.9  #: factor on the optimal step
 MIN_FACTOR = 0.2  #: smallest step change in one go
@@ -41,6 +48,14 @@ STEP_FLOOR = 1e-14  #: steps below STEP_FLOOR max(T, 1) are underflow
 VIEW_MIN_COS = 1e-6
 
 jit = njit(cache=True, nogil=True, error_model="numpy")  # stamped cache: _jit.py
+
+
+@jit
+def _fixed_view(y, p, v, f):
+    """The fixed-frame state v (its body vector b left 0: a step observer reads e, w and G) of the
+    fast Euler state y, and its rate f."""
+    observed_fixed_from_fast_into(y, v)
+    fixed.rhs(v, p, f)
 
 
 @jit
@@ -127,16 +142,31 @@ def adaptive_one(y0, p, T, tol, tab, obs, i, fixed_form, max_steps, traj, t_rec,
     # `first` is the run-time n_acc == 0 at every record call, never a literal True or False:
     # numba compiles the observer once per literal value it is called with
     n_acc = 0
+    # a step observer's fixed-frame state and rate at the last accepted step's end (ya, fa) and
+    # at the new one's (yb, fb)
+    ya = np.empty(fixed.N_FIXED)
+    fa = np.empty(fixed.N_FIXED)
+    yb = np.empty(fixed.N_FIXED)
+    fb = np.empty(fixed.N_FIXED)
     if fixed_form:
         fixed_from_fast_into(y0, y)
         fixed.rhs(y, p, k[0])
-        fast_rhs_into(ev, p, ek)
-        _record_fast(obs, i, n_acc == 0, 0.0, 0.0, ev, ek, p)
+        if OBSERVE_STEPS:
+            ya[:] = y
+            fa[:] = k[0]
+            start(obs, i, ya, fa, p[0], p[1], p[2])
+        else:
+            fast_rhs_into(ev, p, ek)
+            _record_fast(obs, i, n_acc == 0, 0.0, 0.0, ev, ek, p)
     else:
         for q in range(nv):
             y[q] = y0[q]
         fast_rhs_into(y, p, k[0])
-        _record_fast(obs, i, n_acc == 0, 0.0, 0.0, y, k[0], p)
+        if OBSERVE_STEPS:
+            _fixed_view(y, p, ya, fa)
+            start(obs, i, ya, fa, p[0], p[1], p[2])
+        else:
+            _record_fast(obs, i, n_acc == 0, 0.0, 0.0, y, k[0], p)
     t = 0.0
     h = min(h_init, T, h_max)
     status = OK
@@ -179,6 +209,7 @@ def adaptive_one(y0, p, T, tol, tab, obs, i, fixed_form, max_steps, traj, t_rec,
                     for q in range(N_FAST):
                         traj[j_out, q] = yt[q]
                 j_out += 1
+            t_old = t
             t = t_new
             for q in range(nv):
                 y[q] = yn[q]
@@ -186,7 +217,24 @@ def adaptive_one(y0, p, T, tol, tab, obs, i, fixed_form, max_steps, traj, t_rec,
             n_acc += 1
             if n_acc < cap:
                 t_rec[n_acc] = t
-            if fixed_form:
+            if OBSERVE_STEPS:
+                if not fixed_form and y[S_CTH] < cos_min:
+                    status = CHART_SINGULAR
+                    break
+                if fixed_form:
+                    yb[:] = y
+                    fb[:] = k[0]
+                else:
+                    _fixed_view(y, p, yb, fb)
+                step(obs, i, t_old, t - t_old, ya, fa, yb, fb, p[0], p[1], p[2], t >= T)
+                ya[:] = yb
+                fa[:] = fb
+                if fixed_form and fast_from_fixed_into(
+                        y, ev[S_CHI] + h * ev[S_CHD], ev[S_PHI] + h * ev[S_PHD], eo):
+                    ev[:] = eo
+                elif not fixed_form:
+                    ev[:] = y
+            elif fixed_form:
                 # the Euler view, chi and phi on the branches nearest their predicted values
                 if fast_from_fixed_into(y, ev[S_CHI] + h * ev[S_CHD], ev[S_PHI] + h * ev[S_PHD],
                                         ev):
