@@ -37,17 +37,41 @@ from .binding import Observer, StepObserver, bind
 from .outcome import EULER_ANGLES, Result
 from .tableaus import FIXED_STEP, Tableau, stage_source, step_constants
 
-_TEMPLATE = '''
-def run_block(y0, params, dt, n_steps, lo, hi, cos_min, observer_on, observe_every, obs, traj,
-              stride, y_end, stop_after, outcome, t_stop_out):
-    m = hi - lo
+# pieces of the block kernels' source (before .format: {load} is each state row's load)
+_BLOCK_OPEN = """    m = hi - lo
 {load}
     pc = params[0, lo:hi].copy()
     pa = params[1, lo:hi].copy()
     pb = params[2, lo:hi].copy()
     alive = np.ones(m, dtype=np.bool_)
     n_obs = obs.shape[0]
-    obs_l = np.full((n_obs, m), np.nan)
+"""
+# validity is checked every observe_every steps (and at the last): a non-finite value persists,
+# and the singular threshold cos_min is far inside the range where the step still works
+_CHECK = """        if (n + 1) % observe_every == 0 or n + 1 == n_steps:
+            for i in range(m):
+                if alive[i]:
+                    if not math.isfinite(r0[i] + r1[i] + r5[i] + r6[i] + r7[i]):
+                        alive[i] = False
+                        status[i] = NONFINITE
+                        t_stop[i] = t + dt
+                    elif r9[i] < cos_min:
+                        alive[i] = False
+                        status[i] = CHART_SINGULAR
+                        t_stop[i] = t + dt
+"""
+_BLOCK_CLOSE = """    for k in range(n_obs):
+        for i in range(m):
+            obs[k, lo + i] = obs_l[k, i]
+    for i in range(m):
+        outcome[lo + i] = status[i]
+        t_stop_out[lo + i] = t_stop[i]
+"""
+
+_TEMPLATE = '''
+def run_block(y0, params, dt, n_steps, lo, hi, cos_min, observer_on, observe_every, obs, traj,
+              stride, y_end, stop_after, outcome, t_stop_out):
+''' + _BLOCK_OPEN + '''    obs_l = np.full((n_obs, m), np.nan)
     lanes = block_open(obs_l)
     status = np.zeros(m, dtype=np.int8)
     t_stop = np.full(m, np.nan)
@@ -78,29 +102,10 @@ def run_block(y0, params, dt, n_steps, lo, hi, cos_min, observer_on, observe_eve
         if n == n_steps:
             break
 {step}
-        if (n + 1) % observe_every == 0 or n + 1 == n_steps:
-            # validity is checked on the observer's cadence: a non-finite value persists, and the
-            # singular threshold cos_min is far inside the range where the step still works
-            for i in range(m):
-                if alive[i]:
-                    if not math.isfinite(r0[i] + r1[i] + r5[i] + r6[i] + r7[i]):
-                        alive[i] = False
-                        status[i] = NONFINITE
-                        t_stop[i] = t + dt
-                    elif r9[i] < cos_min:
-                        alive[i] = False
-                        status[i] = CHART_SINGULAR
-                        t_stop[i] = t + dt
-    for i in range(m):
+''' + _CHECK + '''    for i in range(m):
 {store}
     block_close(lanes, obs_l)
-    for k in range(n_obs):
-        for i in range(m):
-            obs[k, lo + i] = obs_l[k, i]
-    for i in range(m):
-        outcome[lo + i] = status[i]
-        t_stop_out[lo + i] = t_stop[i]
-'''
+''' + _BLOCK_CLOSE
 
 
 _REFILL = '''
@@ -235,14 +240,8 @@ def _next_observation(k, span, dt, n_steps):
 
 def run_block_steps(y0, params, dt, n_steps, lo, hi, cos_min, observe_every, obs, y_end,
                     stop_after, outcome, t_stop_out):
-    m = hi - lo
-{load}
-    pc = params[0, lo:hi].copy()
-    pa = params[1, lo:hi].copy()
-    pb = params[2, lo:hi].copy()
-    alive = np.ones(m, dtype=np.bool_)
-    n_obs = obs.shape[0]
-    obs_l = np.full((m, n_obs), np.nan).T  # each launch's slots side by side in memory
+""" + _BLOCK_OPEN + """    # each launch's slots side by side in memory
+    obs_l = np.full((m, n_obs), np.nan).T
     status = np.zeros(m, dtype=np.int8)
     t_stop = np.full(m, np.nan)
     ya = np.empty((m, NV))
@@ -264,19 +263,9 @@ def run_block_steps(y0, params, dt, n_steps, lo, hi, cos_min, observe_every, obs
         next_min = min(next_min, n_next[i])
 {consts}
     for n in range(n_steps):
+        t = n * dt
 {step}
-        kk = n + 1
-        if kk % observe_every == 0 or kk == n_steps:
-            for i in range(m):
-                if alive[i]:
-                    if not math.isfinite(r0[i] + r1[i] + r5[i] + r6[i] + r7[i]):
-                        alive[i] = False
-                        status[i] = NONFINITE
-                        t_stop[i] = kk * dt
-                    elif r9[i] < cos_min:
-                        alive[i] = False
-                        status[i] = CHART_SINGULAR
-                        t_stop[i] = kk * dt
+""" + _CHECK + """        kk = n + 1
         if kk >= next_min:
             next_min = n_steps
             n_alive = 0
@@ -300,13 +289,7 @@ def run_block_steps(y0, params, dt, n_steps, lo, hi, cos_min, observe_every, obs
                 break
     for i in range(m):
 {store}
-    for k in range(n_obs):
-        for i in range(m):
-            obs[k, lo + i] = obs_l[k, i]
-    for i in range(m):
-        outcome[lo + i] = status[i]
-        t_stop_out[lo + i] = t_stop[i]
-
+""" + _BLOCK_CLOSE + """
 
 def run_parallel_steps(y0, params, dt, n_steps, block, cos_min, observe_every, obs, y_end,
                        stop_after, outcome, t_stop):
@@ -515,21 +498,26 @@ def integrate(y0, params, dt, n_steps, method="rk4", *, observer: Observer | Ste
     outcome = np.zeros(n, dtype=np.int8)
     t_stop = np.full(n, np.nan)
     block = int(block)
-    if isinstance(observer, StepObserver):
-        if n_rec > 0:
-            raise ValueError("a step observer keeps no samples (n_rec must be 0)")
-        par, run_block = make_step_kernels(method, observer)
-        args = (float(cos_min), max(1, int(observe_every)), obs, y_end, int(stop_after),
-                outcome, t_stop)
+
+    def by_blocks(par, run_block, args):
         if parallel:
             par(y0, params, float(dt), int(n_steps), block, *args)
         else:
             for lo in range(0, n, block):
                 run_block(y0, params, float(dt), int(n_steps), lo, min(n, lo + block), *args)
+
+    def result(t, **kw) -> Result:
         return Result(obs=obs[:n_slots], outcome=outcome, t_stop=t_stop,
                       formulation=np.full(n, EULER_ANGLES, dtype=np.int8), y_end=y_end,
-                      n_steps=np.full(n, int(n_steps), dtype=np.int64), t=np.empty(0),
-                      traj=traj, by_steps=np.ones(n, dtype=bool))
+                      n_steps=np.full(n, int(n_steps), dtype=np.int64), t=t, traj=traj, **kw)
+
+    if isinstance(observer, StepObserver):
+        if n_rec > 0:
+            raise ValueError("a step observer keeps no samples (n_rec must be 0)")
+        by_blocks(*make_step_kernels(method, observer),
+                  (float(cos_min), max(1, int(observe_every)), obs, y_end, int(stop_after),
+                   outcome, t_stop))
+        return result(np.empty(0), by_steps=np.ones(n, dtype=bool))
     par, run_block, par_refill, run_refill = make_kernels(method, observer)
     if stop_after > 0 and n_rec == 0 and n_slots > 0 and n > 0:
         # period mode: lanes refill from a queue (`run_refill`); groups of launches spread
@@ -541,19 +529,8 @@ def integrate(y0, params, dt, n_steps, method="rk4", *, observer: Observer | Ste
                        refill_groups(n, block, parallel), *args)
         else:
             run_refill(y0, params, float(dt), int(n_steps), 0, n, block, *args)
-        return Result(obs=obs[:n_slots], outcome=outcome, t_stop=t_stop,
-                      formulation=np.full(n, EULER_ANGLES, dtype=np.int8), y_end=y_end,
-                      n_steps=np.full(n, int(n_steps), dtype=np.int64), t=np.empty(0),
-                      traj=traj)
+        return result(np.empty(0))
     stride = max(1, int(stride))
-    args = (float(cos_min), n_slots > 0, max(1, int(observe_every)), obs, traj, stride, y_end,
-            int(stop_after), outcome, t_stop)
-    if parallel:
-        par(y0, params, float(dt), int(n_steps), block, *args)
-    else:
-        for lo in range(0, n, block):
-            run_block(y0, params, float(dt), int(n_steps), lo, min(n, lo + block), *args)
-    return Result(obs=obs[:n_slots], outcome=outcome, t_stop=t_stop,
-                  formulation=np.full(n, EULER_ANGLES, dtype=np.int8), y_end=y_end,
-                  n_steps=np.full(n, int(n_steps), dtype=np.int64),
-                  t=np.arange(n_rec) * (float(dt) * stride), traj=traj)
+    by_blocks(par, run_block, (float(cos_min), n_slots > 0, max(1, int(observe_every)), obs,
+                               traj, stride, y_end, int(stop_after), outcome, t_stop))
+    return result(np.arange(n_rec) * (float(dt) * stride))
