@@ -128,12 +128,16 @@ def test_sweep_with_backend_cuda_gives_the_cpu_map(tmp_path):
         assert np.allclose(cpu[v].values[fixed], gpu[v].values[fixed], rtol=1e-9), v
     # the others: the same RK4 steps, seen by two observers (the card samples every 4th step,
     # the CPU map's step observer reads each launch's own spans), at a coarse 1 ms step with
-    # theta up to 88.3 deg. Measured: turn and n_sides 3.3e-5 relative, period 5e-8, roundness
-    # 2e-4, theta max 1e-7; the energy drift is read at other instants (3e-1 of itself)
+    # theta up to 88.3 deg, where RK4 itself errs by 8e-6 in the period, 1e-3 deg in the turn and
+    # 2e-4 deg in theta max (against the quadrature). Measured between them: turn and n_sides
+    # 3.3e-5 relative, period 1e-6, roundness 2e-4, theta max 4e-7; the energy drift is read at
+    # other instants (within a factor 1.7)
     e = ~fixed
-    for v, rtol in (("n_sides", 1e-4), ("turn_per_cycle_deg", 1e-4), ("theta_period_s", 2e-7),
-                    ("roundness", 1e-3), ("theta_max_deg", 3e-7), ("energy_drift", 0.5)):
+    for v, rtol in (("n_sides", 1e-4), ("turn_per_cycle_deg", 1e-4), ("theta_period_s", 3e-6),
+                    ("roundness", 1e-3), ("theta_max_deg", 1e-6)):
         assert np.allclose(cpu[v].values[e], gpu[v].values[e], rtol=rtol), v
+    ratio = cpu.energy_drift.values[e] / gpu.energy_drift.values[e]
+    assert ((ratio > 0.5) & (ratio < 2.0)).all(), ratio
 
 
 @pytest.mark.parametrize("run,words", [

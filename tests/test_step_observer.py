@@ -345,3 +345,22 @@ def test_a_very_short_step_adds_no_rounding_to_the_forces():
     assert (new["label"] == CODE["unresolved"]).all()
     for f in ("max_friction_ratio", "min_normal_force_ratio"):
         assert np.allclose(new[f], ref[f], rtol=1e-9)
+
+
+def test_fixed_step_map_by_steps_at_high_tilt_and_through_the_vertical():
+    # two launches whose theta passes 85-87 deg under a fast spin: spans paced by the rates alone
+    # read the first one's theta maximum 2.5e-3 deg off and the second's turn 3e-4 deg off (the
+    # sampling observer: 1e-10); and one that tilts through the vertical within its first span
+    # and blew up before the observer had seen its tilt, so it was labelled `blew_up` instead of
+    # going to the fixed-frame re-run (the quadrature says rosette)
+    launches = np.array([(79.0770, 2.1980, -11.3123, -2.4558), (78.1421, 2.3945, 0.5209, 6.0253),
+                         (15.335, -2.939, 0.113, -0.095)])
+    y0 = launch_state(*launches.T, TU)
+    p = np.repeat(P[:, None], 3, 1)
+    plan = StepPlan(6.0, 1e-4, TU)
+    new = classify(run_launches(y0, p, plan, "rk4"), BALL.flat_face_theta_rad)
+    q = classify(run_launches(y0, p, plan, "quadrature"), BALL.flat_face_theta_rad)
+    assert np.array_equal(new["label"], q["label"])
+    assert list(new["formulation"]) == [0, 0, 1]
+    assert np.abs(new["theta_max_deg"] - q["theta_max_deg"])[:2].max() < 1e-6
+    assert np.abs(new["turn_per_cycle_deg"] - q["turn_per_cycle_deg"])[:2].max() < 1e-5
