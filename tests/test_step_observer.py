@@ -364,3 +364,20 @@ def test_fixed_step_map_by_steps_at_high_tilt_and_through_the_vertical():
     assert list(new["formulation"]) == [0, 0, 1]
     assert np.abs(new["theta_max_deg"] - q["theta_max_deg"])[:2].max() < 1e-6
     assert np.abs(new["turn_per_cycle_deg"] - q["turn_per_cycle_deg"])[:2].max() < 1e-5
+
+
+def test_fixed_step_map_by_steps_under_a_fast_spin():
+    # near-steady launches under a fast spin (|phidot0| 10-62 rad/s): their theta nutates as fast
+    # as the ball spins, which none of the path's rates shows, and spans paced by them lost theta
+    # cycles (a period of 5.87 s for 2.66 s, `circle` for `near_straight`) or points (19.9 a
+    # cycle: `unresolved`); the quadrature gives the truth
+    launches = np.array([(22.850621046564243, 1e-4, -0.7642259031893238, -41.90078483331993),
+                         (1.7045789486647713, 1e-6, 0.5000156414460322, 62.131087215453256),
+                         (11.345267884210408, 1e-6, -3.1390214536162984, -10.295819619321705)])
+    y0 = launch_state(*launches.T, TU)
+    p = np.repeat(P[:, None], 3, 1)
+    plan = StepPlan(20.0, 1e-4, TU)
+    new = classify(run_launches(y0, p, plan, "rk4", cycles=2), BALL.flat_face_theta_rad)
+    q = classify(run_launches(y0, p, plan, "quadrature", cycles=2), BALL.flat_face_theta_rad)
+    assert np.array_equal(new["label"], q["label"])
+    assert np.allclose(new["theta_period_s"], q["theta_period_s"], rtol=1e-6)

@@ -102,6 +102,11 @@ STEP_CYCLE_FRACTION = 1.0 / 18.0
 SPAN_SPEED_FLOOR = 1e-2
 #: a step that holds a predicted theta extremum ends this far past it (its share of the step)
 EXTREMUM_OVERSHOOT = 1.05
+#: the least change of e_z over a span from which theta's local frequency is read, and the
+#: least range of theta (rad) whose cycles pace the spans (below: rounding, a steady circle,
+#: whose flips of e_z' pace nothing)
+FREQUENCY_MIN_DEZ = 1e-10
+CYCLE_MIN_RANGE = 1e-9
 #: the tilt (rad) above which a step's end counts towards theta's extremes, and from which a
 #: span tilting towards the vertical is at most half the time to reach it at its rate
 TILT_WATCH = math.radians(80.0)
@@ -111,6 +116,8 @@ TILT_WATCH_COS2 = math.cos(TILT_WATCH) ** 2
 #: HIGH_TILT_SHARE of what the rates allow (measured on 2000 random launches, 6 s: the worst
 #: turn per cycle against the quadrature 2.1e-4 deg without, 1.7e-5 deg with)
 SPIN_WATCH_COS2 = math.cos(math.radians(60.0)) ** 2
+#: below it, the ball's spin may turn by STEP_ANGLE / sqrt(SPIN_SHARE2) in a span
+SPIN_SHARE2 = 0.5 ** 2
 HIGH_TILT_SHARE = 0.5
 
 
@@ -132,12 +139,14 @@ def step_span(obs, i, ya, fa, yb, fb):
     floor = max(speed, SPAN_SPEED_FLOOR)
     rate2 = max(rate2, (ax * ax + ay * ay) / (floor * floor))
     cth2 = yb[EX] * yb[EX] + yb[EY] * yb[EY]
-    if cth2 < SPIN_WATCH_COS2:  # high tilt: the ball's own spin sets the pace too (a launch
-        # passing 85 deg read its theta maximum 2.5e-3 deg off without it)
-        rate2 = max(rate2, yb[WX] * yb[WX] + yb[WY] * yb[WY] + yb[WZ] * yb[WZ])
+    # the ball's own spin: theta's nutation under a fast spin is as fast as the spin, and a
+    # near-steady launch shows it in none of the rates above; at high tilt it sets the pace (a
+    # launch passing 85 deg read its theta maximum 2.5e-3 deg off without it)
+    spin2 = yb[WX] * yb[WX] + yb[WY] * yb[WY] + yb[WZ] * yb[WZ]
+    rate2 = max(rate2, spin2 if cth2 < SPIN_WATCH_COS2 else spin2 * SPIN_SHARE2)
     ezdd = obs[ob.O_P_EZDD, i]
     dez = yb[EZ] - ya[EZ]
-    if dez != 0.0:
+    if abs(dez) > FREQUENCY_MIN_DEZ:  # below it, rounding (a steady circle): no frequency
         w2 = -(ezdd - _axis_acceleration(ya, fa)[2]) / dez
         if w2 > 0.0 and w2 < math.inf:
             obs[ob.O_SPAN_W2, i] = w2
@@ -148,7 +157,7 @@ def step_span(obs, i, ya, fa, yb, fb):
     if cth2 < SPIN_WATCH_COS2:
         span *= HIGH_TILT_SHARE
     n_cyc = obs[ob.O_NMAX, i] - 1.0
-    if n_cyc >= 1.0:
+    if n_cyc >= 1.0 and obs[ob.O_TH_MAX, i] - obs[ob.O_TH_MIN, i] > CYCLE_MIN_RANGE:
         span = min(span, STEP_CYCLE_FRACTION * (obs[ob.O_TL, i] - obs[ob.O_T1, i]) / n_cyc)
     # a theta extremum ahead (e_z' = 0, predicted from e_z' and e_z''): the step that holds it
     # should end just past it, where the interpolants' error vanishes (it grows as (u (1 - u))^3

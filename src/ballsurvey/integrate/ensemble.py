@@ -251,6 +251,7 @@ def run_block_steps(y0, params, dt, n_steps, lo, hi, cos_min, observe_every, obs
     fb = np.empty(NV)
     n_prev = np.zeros(m, dtype=np.int64)
     n_next = np.zeros(m, dtype=np.int64)
+    stored = np.zeros(m, dtype=np.bool_)  # y_end written where the launch stopped
     for i in range(m):
 {observe_i}
         start(obs_l, i, vb, fb, pc[i], pa[i], pb[i])
@@ -266,6 +267,11 @@ def run_block_steps(y0, params, dt, n_steps, lo, hi, cos_min, observe_every, obs
         t = n * dt
 {step}
 """ + _CHECK + """        kk = n + 1
+        if kk % observe_every == 0 or kk == n_steps:
+            for i in range(m):
+                if not alive[i] and not stored[i]:  # failed here: its state where it stopped
+                    stored[i] = True
+{stored_now}
         if kk >= next_min:
             next_min = n_steps
             n_alive = 0
@@ -282,13 +288,16 @@ def run_block_steps(y0, params, dt, n_steps, lo, hi, cos_min, observe_every, obs
                     n_next[i] = _next_observation(kk, w, dt, n_steps)
                     if stop_after > 0 and done(obs_l, i, stop_after):
                         alive[i] = False  # period mode: enough theta cycles seen
+                        stored[i] = True  # its state where it stopped, as in run_refill
+{store_deep}
                 if alive[i]:
                     n_alive += 1
                     next_min = min(next_min, n_next[i])
             if n_alive == 0:
                 break
     for i in range(m):
-{store}
+        if not stored[i]:
+{store_deep12}
 """ + _BLOCK_CLOSE + """
 
 def run_parallel_steps(y0, params, dt, n_steps, block, cos_min, observe_every, obs, y_end,
@@ -315,7 +324,9 @@ def _steps_source(tab: Tableau) -> str:
     return _STEPS_TEMPLATE.format(
         load="\n".join(f"    r{q} = y0[{q}, lo:hi].copy()" for q in v),
         observe_i=observe(" " * 8), observe_i_deep=observe(" " * 20), step=step,
-        store="\n".join(f"        y_end[{q}, lo + i] = r{q}[i]" for q in v),
+        store_deep="\n".join(f"{' ' * 24}y_end[{q}, lo + i] = r{q}[i]" for q in v),
+        store_deep12="\n".join(f"{' ' * 12}y_end[{q}, lo + i] = r{q}[i]" for q in v),
+        stored_now="\n".join(f"{' ' * 20}y_end[{q}, lo + i] = r{q}[i]" for q in v),
         consts=step_constants(tab, " " * 4))
 
 
