@@ -647,8 +647,9 @@ def test_parts_are_saved_in_the_background_in_order(tmp_path, reference, monkeyp
     assert seen == [0, 1, 2]
     assert log == [("start", 0, False), ("end", 0), ("start", 1, False), ("end", 1),
                    ("start", 2, False), ("end", 2)]
-    # chunk 1 was computed while chunk 0's part was being written
-    assert at_unit[4] == [("start", 0, False)], at_unit
+    # chunk 1 was computed while chunk 0's part was being written (or was still waiting for
+    # the writer's thread to start, on a busy machine): not after it
+    assert at_unit[4] in ([], [("start", 0, False)]), at_unit
     same_map(spec.output, reference)
 
 

@@ -381,3 +381,21 @@ def test_fixed_step_map_by_steps_under_a_fast_spin():
     q = classify(run_launches(y0, p, plan, "quadrature", cycles=2), BALL.flat_face_theta_rad)
     assert np.array_equal(new["label"], q["label"])
     assert np.allclose(new["theta_period_s"], q["theta_period_s"], rtol=1e-6)
+
+
+def test_fixed_step_map_by_steps_reads_the_first_extremum_of_a_launch_with_a_tilt_rate():
+    # thetadot0 far from 0: theta's frequency, which paces the spans, is read from e_z's change
+    # over a span, so a first span paced by the launch's rates alone passed a good part of a
+    # theta cycle and read the first theta minimum 3.2e-5, 4.7e-6 and 4.5e-6 deg off (the
+    # sampling observer: under 1e-6); the first observation is now one step on
+    launches = np.array([(39.22223678, -1.49818063, -1.18332212, -7.75617681),
+                         (16.95079638, -2.21916254, -1.03717658, 7.79351161),
+                         (25.53978855, -1.81089962, -0.10516507, 6.99150379)])
+    y0 = launch_state(*launches.T, TU)
+    p = np.repeat(P[:, None], 3, 1)
+    plan = StepPlan(6.0, 1e-4, TU)
+    new = classify(run_launches(y0, p, plan, "rk4"), BALL.flat_face_theta_rad)
+    q = classify(run_launches(y0, p, plan, "quadrature"), BALL.flat_face_theta_rad)
+    assert np.array_equal(new["label"], q["label"])
+    for v in ("theta_min_deg", "theta_max_deg"):
+        assert np.abs(new[v] - q[v]).max() < 1e-6, (v, np.abs(new[v] - q[v]))

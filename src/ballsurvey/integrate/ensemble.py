@@ -258,7 +258,10 @@ def run_block_steps(y0, params, dt, n_steps, lo, hi, cos_min, observe_every, obs
         for q in range(NV):
             ya[i, q] = vb[q]
             fa[i, q] = fb[q]
-        n_next[i] = _next_observation(0, span(obs_l, i, vb, fb, vb, fb), dt, n_steps)
+        # the first observation one step on: theta's local frequency, which paces the spans
+        # (`span`), is read from the change of e_z over a span, and a first span paced by the
+        # launch's rates alone can pass a good part of a theta cycle where thetadot0 is large
+        n_next[i] = _next_observation(0, 0.0, dt, n_steps)
     next_min = n_steps
     for i in range(m):
         next_min = min(next_min, n_next[i])
