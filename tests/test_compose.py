@@ -156,3 +156,14 @@ def test_period_mode_stop_asks_the_observer():
     f = compose.classify(res, B.flat_face_theta_rad)
     assert f["n_theta_cycles"][0] == 2 and res.outcome[0] == oc.OK
     assert CODE[LABELS[f["label"][0]]] == CODE["square"]
+
+
+@pytest.mark.parametrize("method", ["rk4", "dopri5", "dop853", "quadrature"])
+def test_a_launch_that_is_not_finite_is_refused_by_every_method(method):
+    # a NaN heading or an infinite position left the quadrature (which the path's turn and
+    # shape do not depend on) with a shape and dopri5 with `ok`, while rk4 said `blew_up`
+    y0 = launch_state(np.full(3, 10.0), 0.0, 4.0, -3.0, TU, chi0_deg=np.array([0.0, np.nan, 0.0]),
+                      y0=np.array([0.0, 0.0, np.inf]))
+    p = np.repeat(P[:, None], 3, 1)
+    with pytest.raises(ValueError, match="launch 1: its state or ball is not finite"):
+        compose.run_launches(y0, p, StepPlan(1.0, 2e-4, TU), method)

@@ -311,6 +311,10 @@ def run_launches(y0, params, plan: StepPlan, method="rk4", *, rtol=1e-9, atol=1e
     frame. method "quadrature": no time stepping (`by_quadrature`). backend "cuda": the
     fixed-step kernel or the quadrature on the GPU (`integrate.cuda`); the fixed-frame
     fallback of the few launches that need it runs on the CPU."""
+    bad = ~(np.isfinite(y0).all(axis=0) & np.isfinite(params).all(axis=0))
+    if bad.any():  # the kernels would read it alike only by chance (the quadrature ignores chi)
+        k = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"launch {k}: its state or ball is not finite ({bad.sum()} launches)")
     stop = stop_target(cycles)
     t0 = time.perf_counter()
     fb0 = TIMES["integrator fallback"]  # by_quadrature's fallback, counted apart
