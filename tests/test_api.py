@@ -326,3 +326,27 @@ def test_the_summary_of_a_map_of_named_points_suggests_no_plot(tmp_path, capsys)
     assert main(["sweep", str(p)]) == 0
     out = capsys.readouterr().out
     assert "wrote" in out and "ballsurvey plot" not in out, out
+
+
+def test_a_units_blocks_are_shared_evenly_over_the_threads():
+    # numba hands each thread an equal, contiguous share of a unit's blocks: the block size
+    # takes as few blocks a thread as the largest block allows, and leaves the busiest thread
+    # (in SIMD vectors, a block's remainder launch by launch) no more to do than blocks of n /
+    # threads or of the largest size did (141 launches on two threads in blocks of 64: 128 and
+    # 13; in blocks of 40: 80 and 61)
+    import math
+
+    from ballsurvey.sweep.compute import _balanced_block, busiest_thread
+
+    for threads in (1, 2, 3, 16):
+        for n in range(1, 700):
+            block = _balanced_block(n, threads, 64)
+            assert 1 <= block <= 64
+            fewest = math.ceil(math.ceil(n / threads) / 64)
+            assert math.ceil(math.ceil(n / block) / threads) == fewest, (n, threads, block)
+            before = min(64, math.ceil(n / threads))
+            assert busiest_thread(n, threads, block) <= busiest_thread(n, threads, before), (
+                n, threads, block)
+    assert _balanced_block(141, 2, 64) == 40
+    # the cost counted: 40 launches are 5 vectors; 13 are one and 5 launches alone
+    assert busiest_thread(53, 2, 40) == 5 and busiest_thread(13, 1, 64) == 1 + 5 * 0.45

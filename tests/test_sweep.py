@@ -224,7 +224,10 @@ def test_existing_result_is_not_overwritten_without_force(tmp_path):
 
 
 def test_kill_9_loses_only_chunks_in_flight(tmp_path):
-    text = SMALL.replace("T = 3.0", "T = 20.0").replace("chunk = 5", "chunk = 2")
+    # chunks of about 0.1 s each (two launches of 1e6 steps), so that the run cannot finish
+    # between two looks at its parts on a busy machine
+    text = SMALL.replace("T = 3.0", "T = 100.0").replace("dt = 5e-4", "dt = 1e-4") \
+        .replace("chunk = 5", "chunk = 2")
     spec = small_spec(tmp_path, "killed.nc", text)
     cmd = [sys.executable, "-m", "ballsurvey", "sweep", str(tmp_path / "small.toml"), "--no-progress"]
     proc = subprocess.Popen(cmd, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.PIPE)

@@ -165,6 +165,20 @@ def fixed_frame_fallback(y0, params, T_nd, res: oc.Result, *, thresholds=Thresho
     return bad
 
 
+def start_numba() -> float:
+    """numba's CPU target started (its registries of typing and lowering, which import
+    scipy.linalg for numba's linear algebra: about 0.25 s), as the first kernel call of a process
+    would: once here, the kernels' times (`TIMES`) leave it out. Returns its seconds."""
+    t = time.perf_counter()
+    try:
+        from numba.core.registry import cpu_target
+
+        cpu_target.target_context.refresh()
+    except (ImportError, AttributeError):  # numba's internals moved: the first call does it
+        pass
+    return time.perf_counter() - t
+
+
 def warm_fallback(params_col, parallels=(True, False), quadrature: bool = True) -> None:
     """Compile (or load from the disk cache) the fallback kernels (the fixed-frame re-run's and,
     with `quadrature`, the quadrature map's integrator), parallel and serial (`parallels`), on

@@ -106,7 +106,7 @@ def run(args):
 
 
 def _where_the_time_went(report: dict, on_dask: bool) -> str:
-    """`sweep -v`'s account of a run's time (s): numba's start (`_start_numba`), the kernels'
+    """`sweep -v`'s account of a run's time (s): numba's start (`compose.start_numba`), the kernels'
     phases (`compose.TIMES`: in this process, or on dask each worker's on average), the rest of
     the run, and on dask the cluster's start (or the connection to a running scheduler), the
     workers' first call and the client's (and a local cluster's) closing. `bench --scaling`
@@ -134,19 +134,9 @@ def _where_the_time_went(report: dict, on_dask: bool) -> str:
 
 
 def _start_numba() -> float:
-    """numba's CPU target started (its registries of typing and lowering, which import
-    scipy.linalg for numba's linear algebra: about 0.2 s), as the first kernel call of a process
-    would: once here, the kernels' times (`compose.TIMES`) leave it out. Returns its seconds."""
-    import time
+    from ..compose import start_numba
 
-    t = time.perf_counter()
-    try:
-        from numba.core.registry import cpu_target
-
-        cpu_target.target_context.refresh()
-    except (ImportError, AttributeError):  # numba's internals moved: the first call does it
-        pass
-    return time.perf_counter() - t
+    return start_numba()
 
 
 def _quiet_dask() -> None:
