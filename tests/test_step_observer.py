@@ -347,19 +347,25 @@ def test_a_very_short_step_adds_no_rounding_to_the_forces():
         assert np.allclose(new[f], ref[f], rtol=1e-9)
 
 
+def _rk4_and_quadrature(launches, T, cycles=0):
+    """Labelled fields of launches (theta0 deg, thetadot0, chidot0, phidot0 rad/s) over T s: the
+    map's RK4 at dt = 1e-4 s (the step observer at its own spans) and the quadrature."""
+    y0 = launch_state(*np.asarray(launches).T, TU)
+    p = np.repeat(P[:, None], y0.shape[1], 1)
+    plan = StepPlan(T, 1e-4, TU)
+    return [classify(run_launches(y0, p, plan, m, cycles=cycles), BALL.flat_face_theta_rad)
+            for m in ("rk4", "quadrature")]
+
+
 def test_fixed_step_map_by_steps_at_high_tilt_and_through_the_vertical():
     # two launches whose theta passes 85-87 deg under a fast spin: spans paced by the rates alone
     # read the first one's theta maximum 2.5e-3 deg off and the second's turn 3e-4 deg off (the
     # sampling observer: 1e-10); and one that tilts through the vertical within its first span
     # and blew up before the observer had seen its tilt, so it was labelled `blew_up` instead of
     # going to the fixed-frame re-run (the quadrature says rosette)
-    launches = np.array([(79.0770, 2.1980, -11.3123, -2.4558), (78.1421, 2.3945, 0.5209, 6.0253),
-                         (15.335, -2.939, 0.113, -0.095)])
-    y0 = launch_state(*launches.T, TU)
-    p = np.repeat(P[:, None], 3, 1)
-    plan = StepPlan(6.0, 1e-4, TU)
-    new = classify(run_launches(y0, p, plan, "rk4"), BALL.flat_face_theta_rad)
-    q = classify(run_launches(y0, p, plan, "quadrature"), BALL.flat_face_theta_rad)
+    new, q = _rk4_and_quadrature([(79.0770, 2.1980, -11.3123, -2.4558),
+                                  (78.1421, 2.3945, 0.5209, 6.0253),
+                                  (15.335, -2.939, 0.113, -0.095)], 6.0)
     assert np.array_equal(new["label"], q["label"])
     assert list(new["formulation"]) == [0, 0, 1]
     assert np.abs(new["theta_max_deg"] - q["theta_max_deg"])[:2].max() < 1e-6
@@ -371,14 +377,10 @@ def test_fixed_step_map_by_steps_under_a_fast_spin():
     # as the ball spins, which none of the path's rates shows, and spans paced by them lost theta
     # cycles (a period of 5.87 s for 2.66 s, `circle` for `near_straight`) or points (19.9 a
     # cycle: `unresolved`); the quadrature gives the truth
-    launches = np.array([(22.850621046564243, 1e-4, -0.7642259031893238, -41.90078483331993),
-                         (1.7045789486647713, 1e-6, 0.5000156414460322, 62.131087215453256),
-                         (11.345267884210408, 1e-6, -3.1390214536162984, -10.295819619321705)])
-    y0 = launch_state(*launches.T, TU)
-    p = np.repeat(P[:, None], 3, 1)
-    plan = StepPlan(20.0, 1e-4, TU)
-    new = classify(run_launches(y0, p, plan, "rk4", cycles=2), BALL.flat_face_theta_rad)
-    q = classify(run_launches(y0, p, plan, "quadrature", cycles=2), BALL.flat_face_theta_rad)
+    new, q = _rk4_and_quadrature(
+        [(22.850621046564243, 1e-4, -0.7642259031893238, -41.90078483331993),
+         (1.7045789486647713, 1e-6, 0.5000156414460322, 62.131087215453256),
+         (11.345267884210408, 1e-6, -3.1390214536162984, -10.295819619321705)], 20.0, cycles=2)
     assert np.array_equal(new["label"], q["label"])
     assert np.allclose(new["theta_period_s"], q["theta_period_s"], rtol=1e-6)
 
@@ -388,14 +390,9 @@ def test_fixed_step_map_by_steps_reads_the_first_extremum_of_a_launch_with_a_til
     # over a span, so a first span paced by the launch's rates alone passed a good part of a
     # theta cycle and read the first theta minimum 3.2e-5, 4.7e-6 and 4.5e-6 deg off (the
     # sampling observer: under 1e-6); the first observation is now one step on
-    launches = np.array([(39.22223678, -1.49818063, -1.18332212, -7.75617681),
-                         (16.95079638, -2.21916254, -1.03717658, 7.79351161),
-                         (25.53978855, -1.81089962, -0.10516507, 6.99150379)])
-    y0 = launch_state(*launches.T, TU)
-    p = np.repeat(P[:, None], 3, 1)
-    plan = StepPlan(6.0, 1e-4, TU)
-    new = classify(run_launches(y0, p, plan, "rk4"), BALL.flat_face_theta_rad)
-    q = classify(run_launches(y0, p, plan, "quadrature"), BALL.flat_face_theta_rad)
+    new, q = _rk4_and_quadrature([(39.22223678, -1.49818063, -1.18332212, -7.75617681),
+                                  (16.95079638, -2.21916254, -1.03717658, 7.79351161),
+                                  (25.53978855, -1.81089962, -0.10516507, 6.99150379)], 6.0)
     assert np.array_equal(new["label"], q["label"])
     for v in ("theta_min_deg", "theta_max_deg"):
         assert np.abs(new[v] - q[v]).max() < 1e-6, (v, np.abs(new[v] - q[v]))
