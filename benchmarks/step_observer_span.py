@@ -54,6 +54,10 @@ def main() -> None:
     ap.add_argument("--T", type=float, default=6.0)
     ap.add_argument("--period", action="store_true")
     args = ap.parse_args()
+    if args.random < 0 or not args.T > 0:
+        ap.error("--random must be at least 1 and --T above 0")
+    if not args.random and (args.period or args.T != 6.0 or args.seed != 1):
+        ap.error("--seed, --T and --period go with --random (a spec has its own T and mode)")
     stop = 0
     if args.random:
         ball = Ball.paper()
@@ -106,6 +110,10 @@ def main() -> None:
         labelled[name] = classify(res, flat)
     first = next(iter(labelled.values()))
     shaped = np.isin(first["label"], [CODE[w] for w in SHAPES]) & (first["formulation"] == 0)
+    if not shaped.any():
+        print("against the quadrature: no launch has a shape in the Euler chart (T too short "
+              "for two theta cycles?): nothing to compare")
+        return
     print(f"against the quadrature, {shaped.sum()} launches with a shape in the Euler chart "
           f"(largest difference):")
     print(f"  {'':24s}" + "".join(f"{n.split(',')[0]:>12s}" for n in labelled))

@@ -1,4 +1,5 @@
 """The command line as a user meets it: exit codes, one-line errors, the README's commands."""
+import math
 import re
 import subprocess
 import sys
@@ -180,3 +181,14 @@ def test_ctrl_c_while_numba_starts_names_the_saved_parts_and_resume(tmp_path, mo
     err = capsys.readouterr().err.strip().splitlines()
     assert stop.value.code == 130 and len(err) == 1, err
     assert f"saved parts in {parts}" in err[0] and "--resume" in err[0], err
+
+
+def test_negative_numbers_in_exponent_form_are_values_not_options():
+    # argparse reads -5 and -5.0 as values but took -5e0 for an option ("expected one
+    # argument"), and left two-value options like --bracket -1e1 5 no way around it
+    from ballsurvey.cli import build_parser
+
+    a = build_parser().parse_args(["find", "--shape", "square", "--theta0-deg", "-5e0",
+                                   "--phidot0", "-3E-0", "--bracket", "-1e1", "5"])
+    assert (a.theta0_deg, a.phidot0, a.bracket) == (-5.0, -3.0, [-10.0, 5.0])
+    assert build_parser().parse_args(["refine", "--chidot0", "-inf", "3"]).chidot0[0] == -math.inf

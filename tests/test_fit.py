@@ -62,7 +62,7 @@ def _good(n=300, fps=300.0):
 @pytest.mark.parametrize("change, words", [
     (lambda d: {k: v[:10] for k, v in d.items()}, "too short"),
     (lambda d: {k: np.where(np.arange(d["t"].size) < 285, np.nan, v) if k == "x" else v
-                for k, v in d.items()}, "285 rows with a blank or NaN cell dropped"),
+                for k, v in d.items()}, "285 rows with a blank or non-finite cell dropped"),
     (lambda d: {**d, "t": d["t"][[0, 1, 2, 4, 3] + list(range(5, d["t"].size))]},
      "t must increase"),
     (lambda d: {**d, "x": d["x"] * 1000, "y": d["y"] * 1000}, "are they in mm or cm?"),
@@ -117,3 +117,19 @@ def test_the_shipped_example_track_is_reproducible_and_fits_back_to_its_launch(t
         assert abs(fit[k] - v) < 3 * fit[f"{k}_err"], (k, fit[k], fit[f"{k}_err"])
     assert fit["label"] == "square"
     assert 0.5 * mod.NOISE_M < fit["rms_m"] < 1.5 * mod.NOISE_M
+
+
+def test_fit_names_the_rows_it_dropped_timed_or_not(tmp_path, capsys):
+    # a lost frame: its x infinite (dropped at its time) or its t blank (no time to name): the
+    # summary said "(t =  s)" for the second
+    launch = dict(FIG9A)
+    tr = synthetic_track(**{k: launch[k] for k in PARAMS[:4]}, chi0_deg=launch["chi0_deg"],
+                         x0=launch["x0"], y0=launch["y0"], T=2.0, fps=300, noise_m=2e-4, seed=1)
+    cols = {k: np.array(tr[k], dtype=float) for k in ("t", "x", "y")}
+    t_bad = cols["t"][100]
+    cols["x"][100] = np.inf
+    cols["t"][200] = np.nan
+    assert main(["fit", _write(tmp_path / "track.csv", cols)]) == 0
+    out = capsys.readouterr().out
+    assert (f"dropped     2 rows with a blank or non-finite cell (at t = {t_bad:g} s; 1 with "
+            "no time)") in out, out

@@ -84,3 +84,16 @@ def test_sweep_summary_names_the_reason(tmp_path, capsys):
     assert main(["sweep", str(spec)]) == 0
     out = capsys.readouterr().out
     assert "too few observer samples per theta cycle (under 20): 1" in out, out
+
+
+def test_sweep_summary_says_when_T_is_too_short(tmp_path, capsys):
+    # fig12a's theta cycle is 0.57 s: 0.4 s holds none of the two complete cycles the
+    # labels need, which a smaller dt does not mend
+    spec = tmp_path / "s.toml"
+    spec.write_text('[[points]]\nname = "fig12a"\ntheta0_deg = -5.0\nthetadot0 = 0.0\n'
+                    'chidot0 = 4.05\nphidot0 = -3.0\n[run]\nT = 0.4\n'
+                    f'[output]\nfile = "{tmp_path / "m.nc"}"\n')
+    assert main(["sweep", str(spec)]) == 0
+    out = capsys.readouterr().out
+    assert "fewer than 2 complete theta cycles in T: 1; raise [run] T" in out, out
+    assert "too few observer samples" not in out, out

@@ -77,6 +77,8 @@ def number(name: str, v, *, positive: bool = False, nonnegative: bool = False,
     """Check one number; returns it as float (or int when `integer`). Raises InputError.
 
     positive: > 0; nonnegative: >= 0; integer: a whole number; lo, hi: inclusive bounds."""
+    if isinstance(v, float):
+        v = float(v)  # numpy's float64 is a float, whose repr is np.float64(...) in messages
     if isinstance(v, bool) or not isinstance(v, (int, float)):
         try:  # numpy scalars
             import numpy as np

@@ -11,6 +11,7 @@ other exception is a bug and shows its traceback.
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 from contextlib import contextmanager
 
@@ -85,7 +86,16 @@ class _Help(argparse.HelpFormatter):
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse with its errors on one line (exit 2), like every other input error."""
+    """argparse with its errors on one line (exit 2), like every other input error, and a
+    negative number in exponent form (-5e0, -1e-3) or -inf read as a value, not an option
+    (argparse knows only -5 and -5.0; its matcher is internal: where it is gone, nothing
+    changes)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        if hasattr(self, "_negative_number_matcher"):
+            self._negative_number_matcher = re.compile(
+                r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-inf(inity)?$", re.IGNORECASE)
 
     def error(self, message):
         self.exit(2, f"{self.prog}: error: {message} (--help lists the options)\n")

@@ -47,8 +47,11 @@ def run(args):
         if fit["n_dropped"]:
             ts = ", ".join(f"{t:g}" for t in fit["dropped_t"][:10])
             more = " ..." if len(fit["dropped_t"]) > 10 else ""
-            print(f"dropped     {fit['n_dropped']} rows with a blank or NaN cell "
-                  f"(t = {ts}{more} s)")
+            untimed = fit["n_dropped"] - len(fit["dropped_t"])  # whose t itself is the bad cell
+            where = "; ".join(w for w in (f"at t = {ts}{more} s" if ts else "",
+                                          f"{untimed} with no time" if untimed > 0 else "") if w)
+            print(f"dropped     {fit['n_dropped']} rows with a blank or non-finite cell "
+                  f"({where})")
         print(f"({fit['n_samples']} samples, {fit['survey_launches']} launches surveyed, "
               f"{fit['seconds']:.1f} s)", flush=True)
     if out is not None:
@@ -67,7 +70,7 @@ def add_parser(cmd):
                          "x, y (m, centre of mass), or two tracked masses named tip and base, or "
                          "x_tip, y_tip, x_base, y_base (m, with --probe-m); optionally theta_deg "
                          "(deg) and chidot (rad/s); tab, comma or semicolon separated; rows with "
-                         "a blank or NaN cell dropped")
+                         "a blank or non-finite cell dropped")
     ft.add_argument("--units", choices=("m", "cm", "mm"),
                     help="length unit of the positions (default: the header's, 'x (cm)', or m)")
     ft.add_argument("--time-units", choices=("s", "ms"),

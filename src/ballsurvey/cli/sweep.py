@@ -191,12 +191,18 @@ def sweep_summary(path, n_launches: int, report: dict) -> str:
         fallback = (int((nc.variables["formulation"][...] == 1).sum())
                     if "formulation" in nc.variables and not by_design else None)
         by_quadrature = attrs.get("run_method") == "quadrature"
-        sparse = 0
+        sparse = short = 0
+        unresolved = codes == LABELS.index("unresolved")
+        if "n_theta_cycles" in nc.variables:  # too short a run: raising T helps, not dt
+            least = float(attrs.get("classify_min_cycles", 2))
+            few = nc.variables["n_theta_cycles"][...].ravel() < least
+            short = int((few & unresolved).sum())
+            unresolved = unresolved & ~few
         if "samples_per_cycle" in nc.variables:
             floor = float(attrs.get("classify_min_samples_per_cycle", 20.0))
             with np.errstate(invalid="ignore"):
                 sparse = int(((nc.variables["samples_per_cycle"][...].ravel() < floor)
-                              & (codes == LABELS.index("unresolved"))).sum())
+                              & unresolved).sum())
         title = attrs.get("title", "")
         points = "launch" in nc.dimensions  # named points: a table, no plot
     counts = np.bincount(codes[(codes >= 0) & (codes < len(LABELS))].astype(int),
@@ -210,6 +216,9 @@ def sweep_summary(path, n_launches: int, report: dict) -> str:
              f"  shapes: {shapes or 'none'}",
              f"  flagged (a status instead of a shape): {n_flag}" + (f" ({status})" if status
                                                                      else "")]
+    if short:
+        lines.append(f"  unresolved for fewer than {least:g} complete theta cycles in T: {short}; "
+                     f"raise [run] T")
     if sparse:
         lines.append(f"  unresolved for too few observer samples per theta cycle (under "
                      f"{floor:g}): {sparse}; lower [run] dt (fixed step) or rtol (dopri5, "

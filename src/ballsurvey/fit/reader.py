@@ -49,7 +49,7 @@ def read_track(path, probe_m: float | None = None, units: str | None = None,
     x_tip, y_tip, x_base, y_base (the probe, with probe_m); optionally theta_deg (deg) and
     chidot (rad/s); other columns are ignored. Cells separated by tabs, semicolons or commas
     (a decimal comma with tabs or semicolons). Units: from the header ('x (cm)', 't (ms)') or
-    `units` (m, cm, mm) and `time_units` (s, ms); default m and s. Rows with a blank or NaN
+    `units` (m, cm, mm) and `time_units` (s, ms); default m and s. Rows with a blank or non-finite
     cell (lost frames) are dropped and their times kept in `Track.dropped_t`. InputError (one
     line) for a file that is not such a track."""
     import io

@@ -29,8 +29,8 @@ MAX_DURATION_S = 600.0
 class Track:
     """A measured track; t in s from the first sample (t_start: its time in the file, s).
     Arrays are None where the file has no such column. dropped_t: the file's times (s) of the
-    rows dropped for a blank or NaN cell (lost frames); dropped_untimed: rows dropped without a
-    time."""
+    rows dropped for a blank or non-finite cell (lost frames); dropped_untimed: rows dropped
+    without a time."""
 
     t: np.ndarray
     t_start: float = 0.0
@@ -116,7 +116,7 @@ def make_track(t, x=None, y=None, *, theta_deg=None, chidot=None, x_tip=None, y_
     elif probe_m is not None:
         raise limits.InputError(f"{source}: the probe's length (--probe-m) goes with a track of "
                                 f"the probe ({', '.join(PROBE_COLUMNS)}); this one has x, y")
-    lost = f" ({dropped_t.size + untimed} rows with a blank or NaN cell dropped)" \
+    lost = f" ({dropped_t.size + untimed} rows with a blank or non-finite cell dropped)" \
         if bad_rows.any() else ""
     if t.size < MIN_SAMPLES:
         raise limits.InputError(f"{source}: {t.size} samples is too short a track{lost}; a fit "
