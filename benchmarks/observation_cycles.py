@@ -20,6 +20,7 @@ import types
 
 import numba
 import numpy as np
+from cycle_counter import patched
 
 from ballsurvey.classify.observer import N_OBS
 from ballsurvey.compose import FIXED_STEP_OBSERVER, OBSERVER, launch_arrays
@@ -27,23 +28,6 @@ from ballsurvey.integrate import ensemble
 from ballsurvey.sweep.plan import launch_table
 from ballsurvey.sweep.spec import load_spec
 from ballsurvey.units import StepPlan
-
-COUNTER = '''
-from llvmlite import ir as _ir
-from numba import types as _types
-from numba.core import cgutils as _cgutils
-from numba.extending import intrinsic as _intrinsic
-
-
-@_intrinsic
-def rdtsc(typingctx):
-    def codegen(context, builder, sig, args):
-        fnty = _ir.FunctionType(_ir.IntType(64), [])
-        fn = _cgutils.get_or_insert_function(builder.module, fnty, "llvm.readcyclecounter")
-        return builder.call(fn, [])
-    return _types.int64(), codegen
-
-'''
 
 #: (text in the kernel's source, what it becomes): the counters
 PATCHES = (
@@ -78,13 +62,8 @@ NAMES = ("observation passes", "conversion + rate", "observer step", "observer s
 
 def counted_kernel(method: str):
     """run_parallel_steps of a copy of the map's kernel module with the counters, in memory."""
-    source = ensemble._steps_module_source(method).replace("cache=True", "cache=False")
-    for old, new in PATCHES:
-        if source.count(old) != 1:
-            raise SystemExit(f"the kernel's source has changed: {old.strip()[:40]!r} is not "
-                             "in it once")
-        source = source.replace(old, new)
-    source = source.replace("\nOBSERVE_GRID =", COUNTER + "\nOBSERVE_GRID =", 1)
+    source = patched(ensemble._steps_module_source(method).replace("cache=True", "cache=False"),
+                     PATCHES)
     mod = types.ModuleType("counted_steps")
     exec(compile(source, "<counted_steps>", "exec"), mod.__dict__)
     for key, fn in FIXED_STEP_OBSERVER._asdict().items():
