@@ -3,9 +3,9 @@ the turning points (the search and Newton's method), the Clenshaw-Curtis levels 
 and turn converge, the path at the level before (rates, cumulative integrals, the heading's
 variation) and the rest (the orbit's centre and radii, the count of maxima, the slots).
 
-`classify/cycle.py` is compiled again in memory, uncached, with counters between those phases;
-each launch's four counts come back in its first observer slots (so the copy's fields are for
-timing only). The same launches through the kernel as shipped, for scale. One thread, serially.
+`classify/cycle.py` is compiled again from a temporary copy, uncached, with counters between
+its phases (as `quadrature_kernel.py` builds its copies); each launch's four counts come back in
+its first observer slots (so the copy's fields are for timing only). The same launches through the kernel as shipped, for scale. One thread, serially.
 Launches: a random sample of the headline map's box (thetadot0 = 0; `--tilt-rate`: a third with
 a rate of up to 3 rad/s, where both turning points are searched). Needs only ballsurvey:
 
@@ -14,12 +14,13 @@ a rate of up to 3 rad/s, where both turning points are searched). Needs only bal
 from __future__ import annotations
 
 import argparse
+import tempfile
 import time
-import types
 from pathlib import Path
 
 import numpy as np
 from cycle_counter import patched
+from quadrature_kernel import _module
 
 from ballsurvey.ball import Ball
 from ballsurvey.classify import cycle
@@ -42,16 +43,25 @@ PATCHES = (
 PHASES = ("turning points", "levels", "path", "the rest")
 
 
-def counted_module():
-    text = Path(cycle.__file__).read_text()
-    text = (text.replace("from .._jit import njit", "from ballsurvey._jit import njit")
-            .replace("from ..physics", "from ballsurvey.physics")
-            .replace("from . import observer", "from ballsurvey.classify import observer")
-            .replace("from .trig import", "from ballsurvey.classify.trig import")
-            .replace("cache=True", "cache=False"))
-    mod = types.ModuleType("cycle_counted")
-    exec(compile(patched(text, PATCHES), "<cycle_counted>", "exec"), mod.__dict__)
-    return mod
+def counted_module(folder: Path):
+    """cycle.py with the counters, as `quadrature_kernel.py` builds a stand-alone copy."""
+    return _module(patched(Path(cycle.__file__).read_text(), PATCHES), "cycle_counted", folder)
+
+
+def _timed(counted, y0, p, T, tabs) -> dict:
+    """{"counted"|"shipped": (best seconds of 3, obs, status)}: each kernel serially on y0."""
+    n = y0.shape[1]
+    out = {}
+    for name, mod in (("counted", counted), ("shipped", cycle)):
+        obs, status = np.empty((cycle.ob.N_OBS, n)), np.zeros(n, dtype=np.int8)
+        mod._block(y0[:, :2], p[:, :2], T, 2, 1e-8, *tabs, 0, 2, obs, status)  # compiled
+        best = np.inf
+        for _ in range(3):
+            t = time.perf_counter()
+            mod._block(y0, p, T, 2, 1e-8, *tabs, 0, n, obs, status)
+            best = min(best, time.perf_counter() - t)
+        out[name] = (best, obs.copy(), status.copy())
+    return out
 
 
 def main() -> None:
@@ -71,17 +81,8 @@ def main() -> None:
     p = np.repeat(ball.nondim_params()[:, None], n, 1)
     T = 20.0 / ball.time_unit
     tabs = cycle.tables()
-    counted = counted_module()
-    out = {}
-    for name, mod in (("counted", counted), ("shipped", cycle)):
-        obs, status = np.empty((cycle.ob.N_OBS, n)), np.zeros(n, dtype=np.int8)
-        mod._block(y0[:, :2], p[:, :2], T, 2, 1e-8, *tabs, 0, 2, obs, status)  # compiled
-        best = np.inf
-        for _ in range(3):
-            t = time.perf_counter()
-            mod._block(y0, p, T, 2, 1e-8, *tabs, 0, n, obs, status)
-            best = min(best, time.perf_counter() - t)
-        out[name] = (best, obs.copy(), status.copy())
+    with tempfile.TemporaryDirectory() as tmp:
+        out = _timed(counted_module(Path(tmp)), y0, p, T, tabs)
     t_c, obs, status = out["counted"]
     done = status == cycle.DONE
     phases = obs[:4, done]

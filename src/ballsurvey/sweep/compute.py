@@ -134,9 +134,9 @@ def _balanced_block(n: int, threads: int, largest: int) -> int:
     """The block size for a unit of n launches on `threads` threads: at most `largest`, as few
     blocks a thread as that allows, of the sizes that share them out evenly (in whole SIMD
     vectors or not) or take n / threads, the one whose busiest thread is done first
-    (`busiest_thread`). 141 launches on
-    two threads in blocks of 64 leave one thread two blocks against the other's 13 launches;
-    in blocks of 40 the threads have 80 and 61. Results never depend on the block size."""
+    (`busiest_thread`). 141 launches on two threads in blocks of 64 leave one thread two blocks
+    against the other's 13 launches; in blocks of 40 the threads have 80 and 61. Results never
+    depend on the block size."""
     per = math.ceil(n / threads)  # launches a thread
     size = min(largest, math.ceil(per / math.ceil(per / largest)))
     whole = min(largest, SIMD_LAUNCHES * math.ceil(size / SIMD_LAUNCHES))
