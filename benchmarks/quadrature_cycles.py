@@ -5,9 +5,10 @@ variation) and the rest (the orbit's centre and radii, the count of maxima, the 
 
 `classify/cycle.py` is compiled again from a temporary copy, uncached, with counters between
 its phases (as `quadrature_kernel.py` builds its copies); each launch's four counts come back in
-its first observer slots (so the copy's fields are for timing only). The same launches through the kernel as shipped, for scale. One thread, serially.
-Launches: a random sample of the headline map's box (thetadot0 = 0; `--tilt-rate`: a third with
-a rate of up to 3 rad/s, where both turning points are searched). Needs only ballsurvey:
+its first observer slots (so the copy's fields are for timing only). The same launches through
+the kernel as shipped, for scale. One thread, serially. Launches: a random sample of the
+headline map's box (thetadot0 = 0; `--tilt-rate`: a third with a rate of up to 3 rad/s, where
+both turning points are searched). Needs only ballsurvey:
 
     python benchmarks/quadrature_cycles.py [--launches 20000] [--tilt-rate]
 """
