@@ -7,6 +7,9 @@ labels."""
 from __future__ import annotations
 
 import math
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -389,3 +392,19 @@ file = "{out}"
             f"launched steady, not converged): {n_fallback}") in out
     assert q.formulation.attrs["flag_meanings"] == "euler_angles fixed_frame quadrature"
     assert np.array_equal(q.label.values, d.label.values)
+
+
+def test_quadrature_tables_do_not_depend_on_blas_threads():
+    # the cumulative integration matrices came from a BLAS product, whose rounding followed
+    # OPENBLAS_NUM_THREADS (and OMP_NUM_THREADS, which dask's import sets to 1): every launch
+    # by quadrature then differed in its last bits between a sweep and a dask worker
+    code = ("import hashlib; from ballsurvey.classify import cycle; "
+            "print(hashlib.sha256(b''.join(a.tobytes() for a in cycle.tables())).hexdigest())")
+    digests = set()
+    for threads in ("1", "2", "3"):
+        env = dict(os.environ, OPENBLAS_NUM_THREADS=threads, OMP_NUM_THREADS=threads)
+        r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                           text=True, timeout=300)
+        assert r.returncode == 0, r.stderr
+        digests.add(r.stdout.strip())
+    assert len(digests) == 1, digests

@@ -146,7 +146,11 @@ def tables():
         weights[L, ::MAX_N // n] = integ.sum(axis=0)
         size = 0
         if L < LEVELS - 1:
-            q = ch.chebvander(-np.cos(math.pi * j / n), n + 1) @ integ
+            # the product by numpy's own loop (einsum, unoptimised), not BLAS: a BLAS product's
+            # rounding depends on its thread count (OPENBLAS_NUM_THREADS, OMP_NUM_THREADS), and
+            # every launch by quadrature would follow it in the last bits
+            q = np.einsum("ij,jk->ik", ch.chebvander(-np.cos(math.pi * j / n), n + 1), integ,
+                          optimize=False)
             q[0] = 0.0
             mats.append(q.T.ravel())  # by columns (`_cumulate`)
             size = q.size
