@@ -29,8 +29,8 @@ from ballsurvey.compose import (
     FIXED_STEP_OBSERVER,
     OBSERVER,
     classify,
-    fixed_frame_fallback,
     launch_arrays,
+    near_vertical_fallback,
     run_launches,
     stop_target,
 )
@@ -106,7 +106,7 @@ def main() -> None:
     labelled = {}
     for name in list(kernels)[1:]:
         res = results[name]
-        fixed_frame_fallback(y0, p, plan.T_nd, res, stop_after=stop)
+        near_vertical_fallback(y0, p, plan.T_nd, res, stop_after=stop)
         labelled[name] = classify(res, flat)
     first = next(iter(labelled.values()))
     shaped = np.isin(first["label"], [CODE[w] for w in SHAPES]) & (first["formulation"] == 0)

@@ -67,7 +67,7 @@ def test_phase_times_reads_what_sweep_verbose_prints():
 
     saved = dict(TIMES)
     TIMES.clear()
-    TIMES.update({"integrate": 1.25, "fixed-frame fallback": 0.5, "label": 0.125})
+    TIMES.update({"integrate": 1.25, "near-vertical fallback": 0.5, "label": 0.125})
     try:
         line = _where_the_time_went({"wall_s": 3.0, "compile_s": 0.4, "numba_start_s": 0.25},
                                     on_dask=False)
@@ -75,7 +75,7 @@ def test_phase_times_reads_what_sweep_verbose_prints():
         TIMES.clear()
         TIMES.update(saved)
     assert _phase_times("other\n" + line) == {"numba start": 0.25, "integrate": 1.25,
-                                              "fixed-frame fallback": 0.5,
+                                              "near-vertical fallback": 0.5,
                                               "label": 0.12}  # .2f rounds 0.125 to even
     report = {"wall_s": 5.0, "cluster_start_s": 1.5, "workers_start_s": 0.75, "n_workers": 4,
               "cluster_close_s": 0.5, "worker_times": {"integrate": 8.0, "label": 1.0}}

@@ -24,7 +24,10 @@ P = B.nondim_params()
 
 
 def _near_vertical():
-    return launch_state(26.0, 0.0, 3.75, -3.0, TU)  # passes theta = 90 deg: RK4 needs the fallback
+    # tilts through theta = 90 deg: RK4 in the Euler chart meets its singularity, and the
+    # quadrature cannot follow it (status VERTICAL), so the fallback integrates it in the fixed
+    # frame
+    return launch_state(60.0, 5.0, 0.0, 0.0, TU)
 
 
 def test_defect_failed_fixed_frame_rerun_is_stored_as_fixed_frame(monkeypatch):
@@ -70,13 +73,14 @@ file = "x.nc"
 """
 
 
-@pytest.mark.parametrize("classify,formulation", [("", 1),
+@pytest.mark.parametrize("classify,formulation", [("", 2),
                                                   ("[classify]\nmax_energy_drift = 1e-3", 0)])
 def test_defect_fallback_uses_the_spec_thresholds(tmp_path, classify, formulation):
     # (-5 deg, 3.2, -3) reaches 88.2 deg (under NEAR_VERTICAL_THETA, which would send it to the
-    # fixed frame whatever the thresholds); RK4 at 1e-3 s drifts 1.8e-4 in energy there.
-    # The default max_energy_drift (1e-4) sends it to the fixed frame; a spec that allows 1e-3 keeps
-    # it in the Euler form (before: the fallback always used the class default)
+    # fallback whatever the thresholds); RK4 at 1e-3 s drifts 1.8e-4 in energy there.
+    # The default max_energy_drift (1e-4) sends it to the fallback (the quadrature does it); a
+    # spec that allows 1e-3 keeps it in the Euler form (before: the fallback always used the
+    # class default)
     text = SPEC.format(classify=classify)
     path = tmp_path / "s.toml"
     path.write_text(text)

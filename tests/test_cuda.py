@@ -92,7 +92,7 @@ file = "{out}"
 
 def test_sweep_with_backend_cuda_gives_the_cpu_map(tmp_path):
     """A map through the CUDA backend (simulator) is the CPU map: labels identical, fields to the
-    two observers' difference; the near-vertical launches' fixed-frame fallback runs on the CPU
+    two observers' difference; the near-vertical launches' fallback runs on the CPU
     in both."""
     import numpy as np
     import xarray as xr
@@ -120,19 +120,19 @@ def test_sweep_with_backend_cuda_gives_the_cpu_map(tmp_path):
                         str(tmp_path / "cuda.nc")], capture_output=True, text=True, env=env,
                        timeout=600)
     assert r.returncode == 2 and "it is this spec run with --backend cuda" in r.stderr, r.stderr
-    # the two launches that pass 88.5 deg are integrated again in the fixed frame, on the CPU in
-    # both: the same to rounding
-    fixed = cpu.formulation.values == 1
-    assert fixed.sum() == 2 and np.array_equal(gpu.formulation.values, cpu.formulation.values)
+    # the two launches that pass 88.5 deg are done again by quadrature, on the CPU in both: the
+    # same to rounding
+    again = cpu.formulation.values == 2
+    assert again.sum() == 2 and np.array_equal(gpu.formulation.values, cpu.formulation.values)
     for v in ("n_sides", "turn_per_cycle_deg", "theta_period_s", "roundness", "energy_drift"):
-        assert np.allclose(cpu[v].values[fixed], gpu[v].values[fixed], rtol=1e-9), v
+        assert np.allclose(cpu[v].values[again], gpu[v].values[again], rtol=1e-9), v
     # the others: the same RK4 steps, seen by two observers (the card samples every 4th step,
     # the CPU map's step observer reads each launch's own spans), at a coarse 1 ms step with
     # theta up to 88.3 deg, where RK4 itself errs by 8e-6 in the period, 1e-3 deg in the turn and
     # 2e-4 deg in theta max (against the quadrature). Measured between them: turn and n_sides
     # 3.3e-5 relative, period 1e-6, roundness 2e-4, theta max 4e-7; the energy drift is read at
     # other instants (within a factor 1.7)
-    e = ~fixed
+    e = ~again
     for v, rtol in (("n_sides", 1e-4), ("turn_per_cycle_deg", 1e-4), ("theta_period_s", 3e-6),
                     ("roundness", 1e-3), ("theta_max_deg", 1e-6)):
         assert np.allclose(cpu[v].values[e], gpu[v].values[e], rtol=rtol), v

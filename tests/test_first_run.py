@@ -2,9 +2,9 @@
 
 * a small map runs the serial kernels (no parallel driver to compile), a large one the parallel
   ones; the file is the same either way;
-* with empty caches and a core to spare, the fixed-frame fallback is compiled by a helper process
-  beside the run's own compilation, and the run then finds it in numba's disk cache (nothing
-  compiled twice);
+* with empty caches and a core to spare, the near-vertical fallback (the serial quadrature) is
+  compiled by a helper process beside the run's own compilation, and the run then finds it in
+  numba's disk cache (nothing compiled twice);
 * the fallback's kernel is compiled for one signature, whoever calls it (the parallel driver,
   the serial loop, one launch's trajectory).
 """
@@ -27,9 +27,9 @@ SMALL = """
 title = "near the vertical"
 [launch]
 theta0_deg = [60.0, 80.0]
-thetadot0 = 0.0
-chidot0 = [1.0, 3.0]
-phidot0 = -3.0
+thetadot0 = [0.0, 5.0]
+chidot0 = [0.0, 3.0]
+phidot0 = [-3.0, 0.0]
 [run]
 T = 0.5
 dt = 5e-4
@@ -49,7 +49,9 @@ def test_serial_and_parallel_runs_write_the_same_map(tmp_path):
     run_sweep(load_spec(tmp_path / "s.toml"), progress=False, parallel=False)
     run_sweep(load_spec(tmp_path / "p.toml"), progress=False, parallel=True)
     with xr.open_dataset(tmp_path / "s.nc") as a, xr.open_dataset(tmp_path / "p.nc") as b:
-        assert (a.formulation == 1).any()  # the map has launches for the fallback
+        # the map has launches for the fallback's two ways: by quadrature, and through the
+        # vertical in the fixed frame
+        assert (a.formulation == 2).any() and (a.formulation == 1).any()
         for k in a.data_vars:
             assert np.array_equal(a[k].values, b[k].values, equal_nan=True), k
 
@@ -67,18 +69,17 @@ class Listener(event.Listener):
     def on_end(self, ev):
         pass
 from ballsurvey import compose
-from ballsurvey.integrate.adaptive import make_kernels
+from ballsurvey.classify import cycle
 compose.idle_core = lambda: True  # as on a quiet machine, whatever the load of this one
-mod = make_kernels(compose.STEP_OBSERVER)
-before = compose.cached_on_disk(mod.adaptive_one)
-compose.prefetch_fallback(False)
+before = compose.cached_on_disk(cycle._block)
+compose.prefetch_fallback()
 started = len(compose._HELPER)
 compose.await_prefetch()
-after = compose.cached_on_disk(mod.adaptive_one)
-compose.prefetch_fallback(False)
+after = compose.cached_on_disk(cycle._block)
+compose.prefetch_fallback()
 again = len(compose._HELPER)
 with event.install_listener("numba:compile", Listener()):
-    compose.warm_fallback(np.array([0.1, 0.4, 0.4]), (False,), quadrature=False)
+    compose.warm_near_vertical(np.array([0.1, 0.4, 0.4]))
 print(json.dumps(dict(before=before, started=started, after=after, again=again,
                       compiled=compiled)))
 """

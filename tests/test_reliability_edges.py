@@ -584,8 +584,8 @@ def test_near_vertical_is_unknown_without_theta_max(tmp_path):
 
 
 def test_summary_of_a_dop853_map_reports_no_fallback(tmp_path, reference):
-    """dop853 integrates every launch in the fixed frame by design: no 'integrated again' line
-    (it counted them all); an rk4 map gives the line."""
+    """dop853 integrates every launch in the fixed frame by design: no 'done again' line (it
+    counted them all); an rk4 map gives the line."""
     from ballsurvey.cli import sweep_summary
 
     for method, line in (("rk4", True), ("dop853", False)):
@@ -595,7 +595,7 @@ def test_summary_of_a_dop853_map_reports_no_fallback(tmp_path, reference):
         if method == "dop853":
             ds["formulation"] = ds.formulation * 0 + 1
         ds.to_netcdf(path)
-        assert ("integrated again in the fixed frame" in sweep_summary(path, 6, {})) == line
+        assert ("done again near the vertical" in sweep_summary(path, 6, {})) == line
 
 
 @pytest.mark.parametrize("resume", [False, True])

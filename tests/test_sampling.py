@@ -10,7 +10,7 @@ from ballsurvey.ball import Ball
 from ballsurvey.classify.labels import LABELS
 from ballsurvey.classify.observer import N_OBS
 from ballsurvey.cli import main
-from ballsurvey.compose import OBSERVER, classify, fixed_frame_fallback, run_launches
+from ballsurvey.compose import OBSERVER, classify, near_vertical_fallback, run_launches
 from ballsurvey.integrate import ensemble
 from ballsurvey.paper import FIGURES, fig4_launch
 from ballsurvey.units import StepPlan, fields_to_si, launch_state
@@ -35,7 +35,7 @@ def _paper_map(method, dt, observe_every, sampling=False):
     if sampling:
         res = ensemble.integrate(y0, p, plan.dt_nd, plan.n_steps, method, observer=OBSERVER,
                                  n_slots=N_OBS, observe_every=observe_every, parallel=False)
-        fixed_frame_fallback(y0, p, plan.T_nd, res, parallel=False)
+        near_vertical_fallback(y0, p, plan.T_nd, res, parallel=False)
     else:
         res = run_launches(y0, p, plan, method, observe_every=observe_every)
     out = fields_to_si(classify(res, BALL.flat_face_theta_rad), BALL.a, TU, BALL.M)

@@ -252,7 +252,7 @@ def _cores() -> int:
 
 
 #: the phases of a run that are kernel work (`compose.TIMES`, as `sweep -v` prints them)
-KERNEL_PHASES = ("integrate", "fixed-frame fallback", "integrator fallback", "label")
+KERNEL_PHASES = ("integrate", "near-vertical fallback", "integrator fallback", "label")
 #: launches per axis of the spec whose fresh-process sweep measures the fixed cost (2^3 = 8)
 PROBE_N = 2
 
@@ -260,7 +260,7 @@ PROBE_N = 2
 def _phase_times(stderr: str) -> dict:
     """{phase: seconds} from the 'where the time went' line of `sweep -v` (names of letters,
     spaces, hyphens and apostrophes each followed by its seconds: numba start, integrate,
-    fixed-frame fallback, label; dask cluster start, workers' first call, closing)."""
+    near-vertical fallback, label; dask cluster start, workers' first call, closing)."""
     line = next((ln for ln in stderr.splitlines() if "where the time went:" in ln), "")
     return {k: float(v) for k, v in re.findall(r"(?:: |, |; )([a-z][a-z' -]*) (\d+\.\d+) s",
                                                 line)}
@@ -391,7 +391,7 @@ def run_scaling(path=None, threads: int | None = None, workers: int | None = Non
         out(f"  {name:38s}{row['wall_s']:9.2f}{100 * row['cpu_s'] / row['wall_s']:5.0f}%"
             f"{row['kernels_s']:12.2f}{row['rest_s']:9.2f}"
             f"{one['wall_s'] / row['wall_s']:15.1f}x{k_ratio}")
-    out("  kernels: integrate + fixed-frame fallback, as `sweep -v` prints them, and on dask the "
+    out("  kernels: integrate + near-vertical fallback, as `sweep -v` prints them, and on dask the "
         "labels too (each worker's on average; in one process the labels are made beside the "
         "integration); rest: wall minus kernels (numba's start included)")
     if has_dask:

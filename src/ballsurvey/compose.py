@@ -1,15 +1,16 @@
 """The layer that composes integrators and the classifier (above integrate/ and classify/).
 
 It hands the streaming observer to the integrators, decides when a launch stops early (period
-mode asks the observer), which launches are integrated again in the fixed frame (the fallback
-policy, with the run's thresholds), and what a run's outcome means as a label word.
+mode asks the observer), which launches are done again near the vertical, by quadrature or in the
+fixed frame (the fallback policy, with the run's thresholds), and what a run's outcome means as a
+label word.
 
 * `run_launches`: fast-state launches through a fixed-step tableau or the adaptive pair, observed,
-  with the fixed-frame fallback; returns the integrator's `Result` (observer record, outcome, stop
+  with the near-vertical fallback; returns the integrator's `Result` (observer record, outcome, stop
   time, formulation).
 * `classify`: a Result -> labels and fields (non-dimensional; `units.fields_to_si` makes them SI).
 * `survey`: SI launches -> SI fields (the sweep engine's chunk, `refine`).
-* `prefetch_fallback`: with empty caches, the fixed-frame fallback compiled in a helper process
+* `prefetch_fallback`: with empty caches, the near-vertical fallback compiled in a helper process
   beside a run's own compilation.
 """
 from __future__ import annotations
@@ -44,12 +45,11 @@ from .classify.step_observer import observe_start, observe_step, step_span
 from .integrate import ensemble, lanes
 from .integrate import outcome as oc
 from .integrate.adaptive import integrate_adaptive, trajectory_adaptive
-from .integrate.adaptive import make_kernels as adaptive_kernels
 from .integrate.binding import Observer, StepObserver
 from .integrate.tableaus import ADAPTIVE, FIXED_STEP, LANE_ADAPTIVE
 from .units import StepPlan, fields_to_si, launch_state
 
-#: seconds spent in this process, by part (integrate, fixed-frame fallback, label): `sweep -v`
+#: seconds spent in this process, by part (integrate, near-vertical fallback, label): `sweep -v`
 #: prints them; a dask worker keeps its own
 TIMES: Counter = Counter()
 #: the phase a sweep in this process runs beside the integration (in its part writer's thread)
@@ -93,7 +93,7 @@ FALLBACK_H_INIT = 1e-3  #: the fixed-frame re-run's first trial step (non-dimens
 #: observer sees each accepted step, and a slow launch (a ball rocking a hair from the upright)
 #: would otherwise take a handful of steps a theta cycle, too few to see its shape
 FALLBACK_H_MAX = 0.1
-#: the fixed-frame fallback of a parallel run runs its launches in parallel (numba threads) from
+#: the fixed-frame re-run of a parallel run runs its launches in parallel (numba threads) from
 #: this many on (a map's units hand it a few each: the square map's 91 in units of 128 launches
 #: took 0.55-0.67 s on one thread, 0.42-0.51 s on two); a serial run (a small map, a dask
 #: worker) never compiles the parallel driver, and the results are the same
@@ -149,19 +149,36 @@ def _fixed_frame(y0, params, T_nd, *, parallel, stop_after=0) -> oc.Result:
                               **dict(FALLBACK, observer=STEP_OBSERVER))
 
 
-def fixed_frame_fallback(y0, params, T_nd, res: oc.Result, *, thresholds=Thresholds(),
-                         parallel=True, stop_after=0) -> np.ndarray:
-    """Re-run in the fixed frame the launches `needs_fallback` names, in place in `res`; returns
-    their indices."""
+def near_vertical_fallback(y0, params, T_nd, res: oc.Result, *, thresholds=Thresholds(),
+                           parallel=True, stop_after=0) -> np.ndarray:
+    """Do again, in place in `res`, the launches of an Euler-angle run that `needs_fallback`
+    names; returns their indices. First from their invariants by quadrature (`classify.cycle`,
+    formulation QUADRATURE: exact there, up to a tilt of 89.99 deg and beyond, and microseconds a
+    launch, so serially: a map hands it a few launches a chunk); those it cannot do (tilt
+    through the vertical, launched steady, not converged) integrated adaptively in the fixed
+    frame (formulation FIXED_FRAME)."""
     bad = np.flatnonzero(needs_fallback(res, thresholds))
-    if bad.size:
-        await_prefetch()
-        r2 = _fixed_frame(y0[:, bad], params[:, bad], T_nd,
-                          parallel=parallel and bad.size >= FALLBACK_PARALLEL_MIN,
+    if not bad.size:
+        return bad
+    await_prefetch()
+    obs, status = cycle.cycles_by_quadrature(y0[:, bad], params[:, bad], T_nd,
+                                             stop_after=stop_after,
+                                             steady_tol=thresholds.steady_rate_tol,
+                                             parallel=False)
+    done = status == cycle.DONE
+    q = bad[done]
+    res.obs[:, q] = obs[:, done]
+    res.outcome[q], res.t_stop[q], res.formulation[q] = oc.OK, np.nan, oc.QUADRATURE
+    res.n_steps[q], res.y_end[:, q] = 0, np.nan
+    if res.by_steps is not None:  # the quadrature's record reads as the Euler chart's
+        res.by_steps[q] = False
+    rest = bad[~done]
+    if rest.size:
+        r2 = _fixed_frame(y0[:, rest], params[:, rest], T_nd,
+                          parallel=parallel and rest.size >= FALLBACK_PARALLEL_MIN,
                           stop_after=stop_after)
-        for name in ("obs", "outcome", "t_stop", "formulation", "n_steps"):
-            getattr(res, name)[..., bad] = getattr(r2, name)
-        res.y_end[:, bad] = r2.y_end
+        for name in ("obs", "outcome", "t_stop", "formulation", "n_steps", "y_end"):
+            getattr(res, name)[..., rest] = getattr(r2, name)
     return bad
 
 
@@ -180,14 +197,16 @@ def start_numba() -> float:
 
 
 def warm_fallback(params_col, parallels=(True, False), quadrature: bool = True) -> None:
-    """Compile (or load from the disk cache) the fallback kernels (the fixed-frame re-run's and,
-    with `quadrature`, the quadrature map's integrator), parallel and serial (`parallels`), on
-    two short launches: a benchmark's warm-up run rarely has a launch that needs them, and their
-    first compilation would be timed as fallback."""
+    """Compile (or load from the disk cache) the fallback kernels (the near-vertical fallback's:
+    the serial quadrature and the fixed-frame re-run, parallel and serial (`parallels`); with
+    `quadrature`, the quadrature map's integrator too) on two short launches: a benchmark's
+    warm-up run rarely has a launch that needs them, and their first compilation would be
+    timed as fallback."""
     from .physics.fast import fast_state
 
     y0 = fast_state(0.0, 0.0, np.radians([10.0, 20.0]), 0.0, 0.0, 0.0, 1.0, -1.0)
     p = np.repeat(np.asarray(params_col, dtype=float).reshape(3, 1), 2, axis=1)
+    warm_near_vertical(params_col)
     for parallel in parallels:
         _fixed_frame(y0, p, 1e-3, parallel=parallel)
         if quadrature:
@@ -196,7 +215,17 @@ def warm_fallback(params_col, parallels=(True, False), quadrature: bool = True) 
                                      stop_after=3)
 
 
-#: the helper process compiling the fixed-frame fallback beside this one (`prefetch_fallback`)
+def warm_near_vertical(params_col) -> None:
+    """Compile (or load from the disk cache) the kernel that does most near-vertical launches of
+    a fixed-step or dopri5 map: the serial quadrature (`near_vertical_fallback`)."""
+    from .physics.fast import fast_state
+
+    y0 = fast_state(0.0, 0.0, np.radians([10.0, 20.0]), 0.0, 0.0, 0.0, 1.0, -1.0)
+    p = np.repeat(np.asarray(params_col, dtype=float).reshape(3, 1), 2, axis=1)
+    cycle.cycles_by_quadrature(y0, p, 1.0, parallel=False)
+
+
+#: the helper process compiling the near-vertical fallback beside this one (`prefetch_fallback`)
 _HELPER: list = []
 #: the longest wait (s) for that helper; past it the fallback is compiled here
 HELPER_WAIT_S = 600.0
@@ -259,31 +288,27 @@ def idle_core() -> bool:
     return after is None or idle_cores(before, after, len(cpus)) >= 1.75
 
 
-def prefetch_fallback(parallel: bool) -> None:
-    """Start compiling the fixed-frame fallback in a helper process when numba's disk cache does
-    not hold it (the first run after an install or an edit of the kernels): there it compiles
-    on another core while this process compiles the fixed-step kernel, and `fixed_frame_fallback`
-    waits for it, then loads the kernels from the disk cache. The fallback is about half of a
-    fixed-step map's first compilation (benchmarks/first_run.py). parallel: the parallel
-    fallback too (the serial one is always compiled). Not started with one numba thread, nor
-    where no core is idle (`idle_core`): there the two compilations would only take turns on
-    the same cores, and the helper's own start and its share of the work (the observer, which
-    both compile) make the run slower; `stop_prefetch` ends a helper whose work the run did not
-    need."""
+def prefetch_fallback() -> None:
+    """Start compiling the near-vertical fallback (`warm_near_vertical`: the serial quadrature)
+    in a helper process when numba's disk cache does not hold it (the first run after an install
+    or an edit of the kernels): there it compiles on another core while this process compiles
+    the fixed-step kernel, and `near_vertical_fallback` waits for it, then loads the kernel from
+    the disk cache. The fallback is about half of a fixed-step map's first compilation
+    (benchmarks/first_run.py); the fixed-frame re-run, for the rare launch the quadrature cannot
+    do, is compiled where it is needed. Not started with one numba thread, nor where no core is
+    idle (`idle_core`): there the two compilations would only take turns on the same cores, and
+    the helper's own start and its share of the work (the physics, which both compile) make the
+    run slower; `stop_prefetch` ends a helper whose work the run did not need."""
     import numba
 
-    if _HELPER or numba.get_num_threads() < 2:
-        return
-    mod = adaptive_kernels(STEP_OBSERVER)
-    if cached_on_disk(mod.adaptive_one) and (not parallel or cached_on_disk(mod.run_parallel)):
+    if _HELPER or numba.get_num_threads() < 2 or cached_on_disk(cycle._block):
         return
     if not idle_core():  # asked only where there is something to compile
         return
     root = str(Path(__file__).resolve().parent.parent)  # the folder that holds ballsurvey/
     path = os.pathsep.join(filter(None, [root, os.environ.get("PYTHONPATH")]))
-    parallels = (False, True) if parallel else (False,)
-    code = ("from ballsurvey.ball import Ball; from ballsurvey.compose import warm_fallback; "
-            f"warm_fallback(Ball.paper().nondim_params(), {parallels}, quadrature=False)")
+    code = ("from ballsurvey.ball import Ball; from ballsurvey.compose import warm_near_vertical; "
+            "warm_near_vertical(Ball.paper().nondim_params())")
     _HELPER.append(subprocess.Popen([sys.executable, "-c", code],
                                     env=dict(os.environ, PYTHONPATH=path),
                                     stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
@@ -321,10 +346,11 @@ def run_launches(y0, params, plan: StepPlan, method="rk4", *, rtol=1e-9, atol=1e
     step observer on each accepted step, and no fallback, which it never needs). cycles > 0
     (period mode): each launch stops once the observer has seen that many complete theta
     cycles; T is then the longest it may run.
-    fallback: launches `needs_fallback` names (with `thresholds`) are run again in the fixed
-    frame. method "quadrature": no time stepping (`by_quadrature`). backend "cuda": the
-    fixed-step kernel or the quadrature on the GPU (`integrate.cuda`); the fixed-frame
-    fallback of the few launches that need it runs on the CPU."""
+    fallback: launches `needs_fallback` names (with `thresholds`) are done again, by quadrature
+    or in the fixed frame (`near_vertical_fallback`). method "quadrature": no time stepping
+    (`by_quadrature`). backend "cuda": the fixed-step kernel or the quadrature on the GPU
+    (`integrate.cuda`); the near-vertical fallback of the few launches that need it runs on the
+    CPU."""
     bad = ~(np.isfinite(y0).all(axis=0) & np.isfinite(params).all(axis=0))
     if bad.any():  # the kernels would read it alike only by chance (the quadrature ignores chi)
         k = int(np.flatnonzero(bad)[0])
@@ -360,9 +386,9 @@ def run_launches(y0, params, plan: StepPlan, method="rk4", *, rtol=1e-9, atol=1e
     t1 = time.perf_counter()
     TIMES["integrate"] += t1 - t0 - (TIMES["integrator fallback"] - fb0)
     if fallback:
-        fixed_frame_fallback(y0, params, plan.T_nd, res, thresholds=thresholds,
+        near_vertical_fallback(y0, params, plan.T_nd, res, thresholds=thresholds,
                              parallel=parallel, stop_after=stop)
-        TIMES["fixed-frame fallback"] += time.perf_counter() - t1
+        TIMES["near-vertical fallback"] += time.perf_counter() - t1
     return res
 
 
@@ -530,10 +556,11 @@ def warm_up() -> None:
 
 
 def warm_up_fallback() -> None:
-    """Compile the parallel fixed-frame fallback that near-vertical launches use (so a timing
-    that follows excludes its compilation)."""
+    """Compile the near-vertical fallback (the serial quadrature and the parallel fixed-frame
+    re-run), so that a timing that follows excludes its compilation."""
     y0 = launch_state(np.full(2, 5.7), 0.0, 1.0, -1.0, 1.0)
     params = np.repeat(np.array([[0.1], [0.4], [0.4]]), 2, 1)
+    warm_near_vertical(params[:, 0])
     _fixed_frame(y0, params, 0.01, parallel=True, stop_after=stop_target(2))
 
 

@@ -478,7 +478,7 @@ def observe_step(obs, i, t0, h, ya, fa, yb, fb, c, A, B, last):
                                                              x2, x3, aya, y1, y2, y3))
     # theta between extrema: only the run's end can be beyond those located, or a step's end
     # above TILT_WATCH before the next extremum (a launch that fails near the vertical there: the
-    # map's fixed-frame fallback reads the tilt reached)
+    # map's near-vertical fallback reads the tilt reached)
     if last or abs(yb[EZ]) > TILT_WATCH_SIN:
         th, _ = _tilt(yb)
         obs[ob.O_TH_MIN, i] = min(obs[ob.O_TH_MIN, i], th)

@@ -188,8 +188,10 @@ def sweep_summary(path, n_launches: int, report: dict) -> str:
         codes = nc.variables["label"][...].ravel()
         # the lane methods (dop853) integrate every launch in the fixed frame: no fallback
         by_design = attrs.get("run_method") in LANE_ADAPTIVE
-        fallback = (int((nc.variables["formulation"][...] == 1).sum())
-                    if "formulation" in nc.variables and not by_design else None)
+        fallback = redone = None
+        if "formulation" in nc.variables and not by_design:
+            form = nc.variables["formulation"][...]
+            fallback, redone = int((form == 1).sum()), int((form == 2).sum())
         by_quadrature = attrs.get("run_method") == "quadrature"
         sparse = short = 0
         unresolved = codes == LABELS.index("unresolved")
@@ -227,7 +229,8 @@ def sweep_summary(path, n_launches: int, report: dict) -> str:
         lines.append(f"  integrated (dop853) where the quadrature cannot go (tilt through the "
                      f"vertical, launched steady, not converged): {fallback}")
     elif fallback is not None:
-        lines.append(f"  integrated again in the fixed frame (near the vertical): {fallback}")
+        lines.append(f"  done again near the vertical: {redone} from their invariants by "
+                     f"quadrature, {fallback} integrated in the fixed frame (through the vertical)")
     best = next((w for w in ("square", "triangle", "ngon", "star", "circle")
                  if counts[LABELS.index(w)]), None)
     steps = [] if points else [f"ballsurvey plot {path}"]

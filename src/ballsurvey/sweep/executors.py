@@ -121,7 +121,7 @@ def run_embedded(spec: Spec, chunks: list, todo: list, finished, *, partials=Non
     pace = {}  # the unit size, carried from call to call
     parallel = parallel_for(spec) if parallel is None else parallel
     if spec.method in FIXED_STEP and spec.backend == "cpu" and todo:
-        prefetch_fallback(parallel)  # compiled beside the fixed-step kernel where not cached
+        prefetch_fallback()  # compiled beside the fixed-step kernel where not cached
     try:
         i = 0
         while i < len(todo):
