@@ -51,7 +51,8 @@ mode's target) comes from the time of the first maximum after the launch.
 
 Status per launch (`DONE`, or why the integrator must do it): `STEADY` (|thetadot0| and
 |thetaddot0| below the classifier's steady_rate_tol), `VERTICAL` (theta reaches +-90 deg),
-`UNCONVERGED` (the quadrature did not converge, or F was not positive where it must be).
+`UNCONVERGED` (the quadrature did not converge, F was not positive where it must be, or F's
+rounding leaves the turning points too uncertain against the swing: `END_SPREAD_LIMIT`).
 """
 from __future__ import annotations
 
@@ -87,6 +88,14 @@ QUAD_RTOL, TURN_TOL = 1e-9, 5e-9
 #: the energy's terms, S) is a larger part of it: the tolerances are then at least NOISE_FACTOR
 #: times the relative rounding of F halfway, eps S / F(m), and at most NOISE_CAP
 NOISE_FACTOR, NOISE_CAP = 100.0, 1e-6
+#: the largest uncertainty of a turning point that F's rounding leaves (f_noise / |F'| there), as
+#: a fraction of the half-range h, at which the quadrature is trusted. Past it the ends' points
+#: spoil the integrals: a small swing (F small everywhere) near a steady circle, or near the
+#: vertical, where F is a difference of large terms. Measured against the fixed frame at rtol
+#: 1e-12 with the limit off (`benchmarks/quadrature_ends.py`, and 1100 launches with small
+#: swings near the vertical): turn per cycle within 8.4e-7 deg below 1e-10, up to 1.9e-6 deg at
+#: 1e-10-1e-9, 2.5e-5 deg at 1e-9-1e-8, 3.6e-4 at 1e-8-1e-7 and 6.6e-3 deg beyond
+END_SPREAD_LIMIT = 1e-10
 #: the vertical less a hair: a tilt whose F is still positive there goes through it
 TILT_LIMIT = 0.5 * math.pi * (1.0 - 1e-13)
 #: first step of the outward search for a turning point, its largest and its least (rad)
@@ -397,6 +406,11 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
                 tau, chd, phd, sth, cth = _end_tau(th, h, E, J, R, c, A, B)
                 scr[_TAU, k], scr[_CHD, k], scr[_PHD, k] = tau, chd, phd
                 scr[_THD, k], scr[_STH, k], scr[_CTH, k] = 0.0, sth, cth
+            # how far F's rounding leaves a turning point, f_noise / |F'| (F' = 2 thetaddot =
+            # 2 h / tau^2 there), against the half-range h: `END_SPREAD_LIMIT`
+            tau_end = max(scr[_TAU, 0], scr[_TAU, MAX_N])
+            if not f_noise * tau_end * tau_end / (2.0 * h * h) <= END_SPREAD_LIMIT:
+                return UNCONVERGED
             first, step, count = stride, stride, n - 1
         else:  # the points between the last level's
             first, step, count = stride, 2 * stride, n // 2

@@ -230,7 +230,8 @@ def sweep_summary(path, n_launches: int, report: dict) -> str:
                      f"vertical, launched steady, not converged): {fallback}")
     elif fallback is not None:
         lines.append(f"  done again near the vertical: {redone} from their invariants by "
-                     f"quadrature, {fallback} integrated in the fixed frame (through the vertical)")
+                     f"quadrature, {fallback} integrated in the fixed frame (where the quadrature "
+                     f"cannot go)")
     best = next((w for w in ("square", "triangle", "ngon", "star", "circle")
                  if counts[LABELS.index(w)]), None)
     steps = [] if points else [f"ballsurvey plot {path}"]
