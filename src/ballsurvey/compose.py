@@ -153,10 +153,11 @@ def near_vertical_fallback(y0, params, T_nd, res: oc.Result, *, thresholds=Thres
                            parallel=True, stop_after=0) -> np.ndarray:
     """Do again, in place in `res`, the launches of an Euler-angle run that `needs_fallback`
     names; returns their indices. First from their invariants by quadrature (`classify.cycle`,
-    formulation QUADRATURE: exact there, up to a tilt of 89.99 deg and beyond, and microseconds a
-    launch, so serially: a map hands it a few launches a chunk); those it cannot do (tilt
-    through the vertical, launched steady, not converged) integrated adaptively in the fixed
-    frame (formulation FIXED_FRAME)."""
+    formulation QUADRATURE: no chart and no step, turn per cycle within 1e-6 deg up to a tilt of
+    89.8 deg and 2e-6 deg to 89.99 (docs/accuracy.md), microseconds a launch, so serially: a map
+    hands it a few launches a chunk); those it cannot do (tilt through the vertical, launched
+    steady, not converged, turning points its rounding leaves uncertain) integrated adaptively
+    in the fixed frame (formulation FIXED_FRAME)."""
     bad = np.flatnonzero(needs_fallback(res, thresholds))
     if not bad.size:
         return bad
