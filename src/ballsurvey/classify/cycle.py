@@ -92,9 +92,10 @@ NOISE_FACTOR, NOISE_CAP = 100.0, 1e-6
 #: a fraction of the half-range h, at which the quadrature is trusted. Past it the ends' points
 #: spoil the integrals: a small swing (F small everywhere) near a steady circle, or near the
 #: vertical, where F is a difference of large terms. Measured against the fixed frame at rtol
-#: 1e-12 with the limit off (`benchmarks/quadrature_ends.py`, and 1100 launches with small
-#: swings near the vertical): turn per cycle within 8.4e-7 deg below 1e-10, up to 1.9e-6 deg at
-#: 1e-10-1e-9, 2.5e-5 deg at 1e-9-1e-8, 3.6e-4 at 1e-8-1e-7 and 6.6e-3 deg beyond
+#: 1e-12 with the limit off (`benchmarks/quadrature_ends.py`, and 1100 launches more with small
+#: swings at 88.5-89.99 deg), the largest turn-per-cycle error: below 1e-10, 8.4e-7 deg up to
+#: theta max 89.8 deg (1.9e-6 deg above: F's rounding near the vertical, which this does not
+#: catch); 1e-10-1e-9, 1.9e-6 deg; 1e-9-1e-8, 2.5e-5 deg; beyond, 1.7e-4 to 6.6e-3 deg
 END_SPREAD_LIMIT = 1e-10
 #: the vertical less a hair: a tilt whose F is still positive there goes through it
 TILT_LIMIT = 0.5 * math.pi * (1.0 - 1e-13)
