@@ -197,16 +197,22 @@ def start_numba() -> float:
     return time.perf_counter() - t
 
 
+def _two_launches(params_col):
+    """(fast states, params) of two short launches (10 and 20 deg, spinning) of one ball: what
+    the warm-ups below compile their kernels on."""
+    from .physics.fast import fast_state
+
+    y0 = fast_state(0.0, 0.0, np.radians([10.0, 20.0]), 0.0, 0.0, 0.0, 1.0, -1.0)
+    return y0, np.repeat(np.asarray(params_col, dtype=float).reshape(3, 1), 2, axis=1)
+
+
 def warm_fallback(params_col, parallels=(True, False), quadrature: bool = True) -> None:
     """Compile (or load from the disk cache) the fallback kernels (the near-vertical fallback's:
     the serial quadrature and the fixed-frame re-run, parallel and serial (`parallels`); with
     `quadrature`, the quadrature map's integrator too) on two short launches: a benchmark's
     warm-up run rarely has a launch that needs them, and their first compilation would be
     timed as fallback."""
-    from .physics.fast import fast_state
-
-    y0 = fast_state(0.0, 0.0, np.radians([10.0, 20.0]), 0.0, 0.0, 0.0, 1.0, -1.0)
-    p = np.repeat(np.asarray(params_col, dtype=float).reshape(3, 1), 2, axis=1)
+    y0, p = _two_launches(params_col)
     warm_near_vertical(params_col)
     for parallel in parallels:
         _fixed_frame(y0, p, 1e-3, parallel=parallel)
@@ -219,11 +225,7 @@ def warm_fallback(params_col, parallels=(True, False), quadrature: bool = True) 
 def warm_near_vertical(params_col) -> None:
     """Compile (or load from the disk cache) the kernel that does most near-vertical launches of
     a fixed-step or dopri5 map: the serial quadrature (`near_vertical_fallback`)."""
-    from .physics.fast import fast_state
-
-    y0 = fast_state(0.0, 0.0, np.radians([10.0, 20.0]), 0.0, 0.0, 0.0, 1.0, -1.0)
-    p = np.repeat(np.asarray(params_col, dtype=float).reshape(3, 1), 2, axis=1)
-    cycle.cycles_by_quadrature(y0, p, 1.0, parallel=False)
+    cycle.cycles_by_quadrature(*_two_launches(params_col), 1.0, parallel=False)
 
 
 #: the helper process compiling the near-vertical fallback beside this one (`prefetch_fallback`)
