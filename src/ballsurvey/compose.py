@@ -94,9 +94,10 @@ FALLBACK_H_INIT = 1e-3  #: the fixed-frame re-run's first trial step (non-dimens
 #: would otherwise take a handful of steps a theta cycle, too few to see its shape
 FALLBACK_H_MAX = 0.1
 #: the fixed-frame re-run of a parallel run runs its launches in parallel (numba threads) from
-#: this many on (a map's units hand it a few each: the square map's 91 in units of 128 launches
-#: took 0.55-0.67 s on one thread, 0.42-0.51 s on two); a serial run (a small map, a dask
-#: worker) never compiles the parallel driver, and the results are the same
+#: this many on (a map's units hand it a few each: the square map's 91 near-vertical launches
+#: integrated so in units of 128 took 0.55-0.67 s on one thread, 0.42-0.51 s on two); a serial
+#: run (a small map, a dask worker) never compiles the parallel driver, and the results are the
+#: same
 FALLBACK_PARALLEL_MIN = 2
 #: a launch that blew up after its tilt passed this (rad) is taken to have met the Euler chart's
 #: singularity (chidot ~ 1 / cos theta outruns the fixed step), not a step too large
@@ -149,6 +150,27 @@ def _fixed_frame(y0, params, T_nd, *, parallel, stop_after=0) -> oc.Result:
                               **dict(FALLBACK, observer=STEP_OBSERVER))
 
 
+#: the per-launch fields of a `Result` that a re-run of some of its launches replaces
+PER_LAUNCH = ("obs", "outcome", "t_stop", "formulation", "n_steps", "y_end")
+
+
+def _replace_launches(res: oc.Result, idx, part: oc.Result) -> None:
+    """Launches idx of `res` (in place) become the launches of `part`, in order."""
+    for name in PER_LAUNCH:
+        getattr(res, name)[..., idx] = getattr(part, name)
+
+
+def _quadrature_result(obs, n_state: int, T_nd: float) -> oc.Result:
+    """The quadrature's records obs (N_OBS, n) as a `Result`: outcome OK, formulation
+    QUADRATURE, no stop time, no steps, no final state."""
+    n = obs.shape[1]
+    return oc.Result(obs=obs, outcome=np.full(n, oc.OK, dtype=np.int8),
+                     t_stop=np.full(n, np.nan),
+                     formulation=np.full(n, oc.QUADRATURE, dtype=np.int8),
+                     y_end=np.full((n_state, n), np.nan), n_steps=np.zeros(n, dtype=np.int64),
+                     t=np.array([float(T_nd)]), traj=np.empty((0, n)))
+
+
 def near_vertical_fallback(y0, params, T_nd, res: oc.Result, *, thresholds=Thresholds(),
                            parallel=True, stop_after=0) -> np.ndarray:
     """Do again, in place in `res`, the launches of an Euler-angle run that `needs_fallback`
@@ -167,19 +189,14 @@ def near_vertical_fallback(y0, params, T_nd, res: oc.Result, *, thresholds=Thres
                                              steady_tol=thresholds.steady_rate_tol,
                                              parallel=False)
     done = status == cycle.DONE
-    q = bad[done]
-    res.obs[:, q] = obs[:, done]
-    res.outcome[q], res.t_stop[q], res.formulation[q] = oc.OK, np.nan, oc.QUADRATURE
-    res.n_steps[q], res.y_end[:, q] = 0, np.nan
+    _replace_launches(res, bad[done], _quadrature_result(obs[:, done], y0.shape[0], T_nd))
     if res.by_steps is not None:  # the quadrature's record reads as the Euler chart's
-        res.by_steps[q] = False
+        res.by_steps[bad[done]] = False
     rest = bad[~done]
     if rest.size:
-        r2 = _fixed_frame(y0[:, rest], params[:, rest], T_nd,
-                          parallel=parallel and rest.size >= FALLBACK_PARALLEL_MIN,
-                          stop_after=stop_after)
-        for name in ("obs", "outcome", "t_stop", "formulation", "n_steps", "y_end"):
-            getattr(res, name)[..., rest] = getattr(r2, name)
+        _replace_launches(res, rest, _fixed_frame(
+            y0[:, rest], params[:, rest], T_nd,
+            parallel=parallel and rest.size >= FALLBACK_PARALLEL_MIN, stop_after=stop_after))
     return bad
 
 
@@ -390,7 +407,7 @@ def run_launches(y0, params, plan: StepPlan, method="rk4", *, rtol=1e-9, atol=1e
     TIMES["integrate"] += t1 - t0 - (TIMES["integrator fallback"] - fb0)
     if fallback:
         near_vertical_fallback(y0, params, plan.T_nd, res, thresholds=thresholds,
-                             parallel=parallel, stop_after=stop)
+                               parallel=parallel, stop_after=stop)
         TIMES["near-vertical fallback"] += time.perf_counter() - t1
     return res
 
@@ -400,11 +417,10 @@ def by_quadrature(y0, params, plan: StepPlan, *, rtol=1e-9, atol=1e-12, block=64
                   backend: str = "cpu") -> oc.Result:
     """Launches by quadrature (`classify.cycle`): the observer's record of each from its
     invariants, formulation QUADRATURE; those it cannot do (tilt through the vertical, launched
-    steady, quadrature not converged) integrated by QUADRATURE_FALLBACK at rtol, atol in the
-    fixed frame (their formulation says so; `TIMES['integrator fallback']`). backend "cuda": the
-    quadrature runs on the GPU, one thread a launch (`integrate.cuda.per_launch`), its fallback
-    on the CPU."""
-    n = y0.shape[1]
+    steady, quadrature not converged, turning points F's rounding leaves uncertain) integrated
+    by QUADRATURE_FALLBACK at rtol, atol in the fixed frame (their formulation says so;
+    `TIMES['integrator fallback']`). backend "cuda": the quadrature runs on the GPU, one thread
+    a launch (`integrate.cuda.per_launch`), its fallback on the CPU."""
     if backend == "cuda":
         from .integrate import cuda
 
@@ -416,10 +432,7 @@ def by_quadrature(y0, params, plan: StepPlan, *, rtol=1e-9, atol=1e-12, block=64
         obs, status = cycle.cycles_by_quadrature(y0, params, plan.T_nd, stop_after=stop,
                                                  steady_tol=thresholds.steady_rate_tol,
                                                  block=block, parallel=parallel)
-    res = oc.Result(obs=obs, outcome=np.zeros(n, dtype=np.int8), t_stop=np.full(n, np.nan),
-                    formulation=np.full(n, oc.QUADRATURE, dtype=np.int8),
-                    y_end=np.full((y0.shape[0], n), np.nan), n_steps=np.zeros(n, dtype=np.int64),
-                    t=np.array([float(plan.T_nd)]), traj=np.empty((0, n)))
+    res = _quadrature_result(obs, y0.shape[0], plan.T_nd)
     bad = np.flatnonzero(status != cycle.DONE)
     if bad.size:
         t0 = time.perf_counter()
@@ -431,8 +444,7 @@ def by_quadrature(y0, params, plan: StepPlan, *, rtol=1e-9, atol=1e-12, block=64
                                       # others for it cost 1-3 ms a chunk (0.2-0.7 s of a
                                       # headline map's chunks of a few launches each)
                                       parallel=parallel and bad.size > block)
-        for name in ("obs", "outcome", "t_stop", "formulation", "n_steps", "y_end"):
-            getattr(res, name)[..., bad] = getattr(r2, name)
+        _replace_launches(res, bad, r2)
         TIMES["integrator fallback"] += time.perf_counter() - t0
     return res
 
