@@ -7,19 +7,22 @@ Two kinds of launches, n each (the paper's ball): the headline map's box (theta0
 chidot0 +-12, phidot0 +-8 rad/s, a third with thetadot0 up to +-1 rad/s), and small swings near
 a steady circle (tilt -20..80 deg, precession +-(1..10) in units of sqrt(g/a), launched 1e-4 to
 0.3 deg off the circle's tilt; most have no turning point the quadrature finds and are left to
-the integrator anyway). For each launch: the quadrature kernel's record with the refusal switched
-off (END_SPREAD_LIMIT = inf) and on, and a reference, the fixed-frame integration at rtol 1e-12
-(another formulation, time stepping). Printed per bin of the turning points' uncertainty against
-the half-range, f_noise / |F'| / h (the kernel's own measure): the launches, how many the kernel
-refuses, and the largest turn-per-cycle error of those it would do without the refusal and of
-those it does.
+the integrator anyway). For each launch: the quadrature kernel's record with the refusal
+switched off (a stand-alone copy of cycle.py with END_SPREAD_LIMIT = inf) and on, and a
+reference, the fixed-frame integration at rtol 1e-12 (another formulation, time stepping).
+Printed per bin of the turning points' uncertainty against the half-range, f_noise / |F'| / h
+(the kernel's own measure): the launches, how many the kernel refuses, and the largest
+turn-per-cycle error of those it would do without the refusal and of those it does.
 """
 from __future__ import annotations
 
 import argparse
 import math
+import tempfile
+from pathlib import Path
 
 import numpy as np
+from quadrature_kernel import _module
 
 from ballsurvey.ball import Ball
 from ballsurvey.classify import cycle
@@ -86,17 +89,16 @@ def main() -> None:
     p = np.repeat(P[:, None], y0.shape[1], 1)
     T = 3.0 / TU
     limit = cycle.END_SPREAD_LIMIT
-    try:  # the kernel reads its constants when compiled: an uncached copy without the limit
-        cycle.END_SPREAD_LIMIT = math.inf
-        free = cycle._block.py_func
-        from numba import njit
-
-        loose = njit(error_model="numpy")(free)
-        obs_free = np.empty((ob.N_OBS, y0.shape[1]))
-        st_free = np.zeros(y0.shape[1], dtype=np.int8)
-        loose(y0, p, T, 0, 1e-8, *cycle.tables(), 0, y0.shape[1], obs_free, st_free)
-    finally:
-        cycle.END_SPREAD_LIMIT = limit
+    # the kernel without the limit: a stand-alone copy of cycle.py with it at infinity, as
+    # quadrature_kernel.py builds its copies
+    text = Path(cycle.__file__).read_text()
+    line = f"END_SPREAD_LIMIT = {limit!r}\n"
+    if line not in text:
+        raise SystemExit(f"cycle.py has no line {line.strip()!r} to replace")
+    with tempfile.TemporaryDirectory() as tmp:
+        loose = _module(text.replace(line, "END_SPREAD_LIMIT = math.inf\n"), "cycle_no_limit",
+                        Path(tmp))
+        obs_free, st_free = loose.cycles_by_quadrature(y0, p, T, parallel=False)
     obs, st = cycle.cycles_by_quadrature(y0, p, T, parallel=False)
     ref = integrate_adaptive(y0, p, T, 1e-12, 1e-15, fixed_frame=True, observer=STEP_OBSERVER,
                              n_slots=ob.N_OBS, h_init=FALLBACK_H_INIT,
