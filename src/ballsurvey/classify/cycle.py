@@ -24,15 +24,15 @@ rising half cycle, dt/ds = h cos s / sqrt(F) is smooth (its value at the ends, s
 quadrature on N + 1 Chebyshev-Lobatto points in s (spectral for smooth integrands, and the points
 cluster at the turning points, where the tilt's approach to the vertical makes the integrands' only
 sharp feature), N = 16, 32, ..., 512, nested (each level reuses the last's points) until the period
-and the turn of two successive levels agree to `QUAD_RTOL` and `TURN_TOL` (relative; absolute in
-rad for a turn under 1 rad; no tighter than F's own rounding allows: `NOISE_FACTOR`); not converged
-at 512: left to the integrator. Each level's new points take their rates in a loop free of
-calls, which runs in SIMD lanes (as does the path's per-point algebra: sines, cosines and
-arctangents in those loops are `trig`'s, plain arithmetic); the numbers are those of one point
-at a time. The period and turn are the last level's; the path is taken at the level before (its
-period and turn agree with the last's to those tolerances): there the cumulative integrals
-(Chebyshev integration matrix) give, at every point, the time, the heading chi (from chidot)
-and G's position (from its velocity, in the heading frame turned by chi).
+and the turn of two successive levels agree to `QUAD_RTOL` and `TURN_TOL` (relative; absolute in rad
+for a turn under 1 rad); not converged at 512: left to the integrator, as is a swing whose turning
+points F's rounding leaves uncertain (`END_SPREAD_LIMIT`). Each level's new points take their rates
+in a loop free of calls, which runs in SIMD lanes (as does the path's per-point algebra: sines,
+cosines and arctangents in those loops are `trig`'s, plain arithmetic); the numbers are those of one
+point at a time. The period and turn are the last level's; the path is taken at the level before
+(its period and turn agree with the last's to those tolerances): there the cumulative integrals
+(Chebyshev integration matrix) give, at every point, the time, the heading chi (from chidot) and G's
+position (from its velocity, in the heading frame turned by chi).
 
 From them, per launch, the observer's slots (`observer.SLOTS`) are filled as the stepping observer
 would fill them after the same number of theta maxima, so the one labeller (`labels.label_fields`)
@@ -84,10 +84,6 @@ MAX_N = FIRST_N << (LEVELS - 1)
 #: reaches 1e3 and the rounding of F close to the turning points (a difference of terms 1e6
 #: times larger) leaves it 1e-9 of noise (the integrals are then as good as that: 4e-7 deg)
 QUAD_RTOL, TURN_TOL = 1e-9, 5e-9
-#: where F is small everywhere (an oscillation of a fraction of a degree), its rounding (ulps of
-#: the energy's terms, S) is a larger part of it: the tolerances are then at least NOISE_FACTOR
-#: times the relative rounding of F halfway, eps S / F(m), and at most NOISE_CAP
-NOISE_FACTOR, NOISE_CAP = 100.0, 1e-6
 #: the largest uncertainty of a turning point that F's rounding leaves (f_noise / |F'| there), as
 #: a fraction of the half-range h, at which the quadrature is trusted. Past it the ends' points
 #: spoil the integrals: a small swing (F small everywhere) near a steady circle, or near the
@@ -399,7 +395,6 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
     # --- nested Clenshaw-Curtis levels until period and turn converge --------------------------
     per_prev, turn_prev = math.nan, math.nan
     level = -1
-    tol_p, tol_t = QUAD_RTOL, TURN_TOL
     for L in range(LEVELS):
         n = FIRST_N << L
         stride = MAX_N // n
@@ -440,18 +435,14 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
             scr[_TAU, k], scr[_CHD, k] = node[_WTAU, p], node[_WCHD, p]
             scr[_PHD, k], scr[_THD, k] = node[_WPHD, p], node[_WTHD, p]
             scr[_STH, k], scr[_CTH, k] = node[_WS, p], node[_WC, p]
-        if L == 0:  # F halfway against the energy's terms: the rounding floor
-            noise = 2.2e-16 * scale / scr[_THD, MAX_N // 2] ** 2
-            tol_p = max(QUAD_RTOL, min(NOISE_CAP, NOISE_FACTOR * noise))
-            tol_t = max(TURN_TOL, min(NOISE_CAP, NOISE_FACTOR * noise))
         per, turn = 0.0, 0.0
         for j in range(uintp(n + 1)):
             k = j * uintp(stride)
             wt = weights[L, k] * scr[_TAU, k]
             per += wt
             turn += wt * scr[_CHD, k]
-        if (L > 0 and abs(per - per_prev) <= tol_p * per
-                and abs(turn - turn_prev) <= tol_t * max(1.0, abs(turn))):
+        if (L > 0 and abs(per - per_prev) <= QUAD_RTOL * per
+                and abs(turn - turn_prev) <= TURN_TOL * max(1.0, abs(turn))):
             level = L
             break
         per_prev, turn_prev = per, turn
