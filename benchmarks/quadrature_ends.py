@@ -72,7 +72,8 @@ def spread(y0: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
         kin = kinetic(*args)
         E, J, R = kin - c * args[0], jellett(*args), routh(*args)
         f_noise = cycle.ROOT_NOISE * 2.2e-16 * (kin + c * abs(args[0]))
-        slope = min(abs(cycle._F_dF(t, E, J, R, c, A, B)[1]) for t in (lo[i], hi[i]))
+        inv = cycle._constants(E, J, R, c, A, B)
+        slope = min(abs(cycle._F_dF(t, inv)[1]) for t in (lo[i], hi[i]))
         out[i] = f_noise / slope / (0.5 * (hi[i] - lo[i]))
     return out
 

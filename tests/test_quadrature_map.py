@@ -237,6 +237,64 @@ def test_small_swings_whose_ends_rounding_spoils_go_to_the_integrator():
     assert done[-3:].all()  # ordinary swings: the quadrature's
 
 
+def test_chidot_about_the_vertical_is_jellett_s_form(monkeypatch):
+    """The kernel's heading rate, taken about the nearer vertical (`cycle._rates_at`), is
+    Jellett's integral solved for chidot, (B w (sin - c) - J) / (A cos^2) with w = R / q from
+    Routh's: the kernel's own code run at 50 digits (mpmath's sqrt in its `math`) against that
+    form, at tilts from -89.999 to 89.999 deg and invariants of either sign, within 1e-40."""
+    import types
+
+    import mpmath as mp
+
+    mp.mp.dps = 50
+    monkeypatch.setattr(cycle, "math", types.SimpleNamespace(sqrt=mp.sqrt))
+    c, A, B = (mp.mpf(float(v)) for v in P)
+    for th_deg in (-89.999, -60.0, -3.0, 0.0, 2.0, 45.0, 89.9, 89.999):
+        th = mp.radians(th_deg)
+        s, co = mp.sin(th), mp.cos(th)
+        for J, R in ((mp.mpf("0.7"), mp.mpf("-1.3")), (mp.mpf("-2.1"), mp.mpf("0.4"))):
+            inv = cycle._constants.py_func(mp.mpf("0.5"), J, R, c, A, B)
+            got = cycle._rates_at.py_func(s, co, inv)[0]
+            w = R / mp.sqrt(A * B + A * co ** 2 + B * (s - c) ** 2)
+            want = (B * w * (s - c) - J) / (A * co ** 2)
+            assert abs(got - want) <= mp.mpf("1e-40") * abs(want), (th_deg, got, want)
+
+
+#: launches (theta0 deg, thetadot0, chidot0, phidot0 rad/s) whose tilt swings up to 89.93-89.99
+#: deg, where chidot's plain Jellett form puts the turn per cycle 1.2-1.6e-6 deg off (its
+#: numerator's rounding, over cos^2 theta)
+VERTICAL_TURNS = [(89.05259846491997, 0.20054961664324467, -5.067874823695653, 3.3699488631539953),
+                  (89.01431219417056, 0.0, -10.245402887915466, 7.196268787488464),
+                  (89.25892964594948, -0.37535512055898324, -4.41952666322584, 2.5975138048048247),
+                  (89.34763806854359, -0.2069228361232487, 12.307590663620879, -5.712770983735043),
+                  (88.6426463525203, -0.35125906989126643, 9.144117083936603, -6.6182795483329055),
+                  (89.51054477309766, 0.4909143126041172, -12.509076157689403, 4.302791150039827)]
+
+
+def test_turn_per_cycle_near_the_vertical_against_the_fixed_frame():
+    """Turn per cycle within 2.5e-7 deg of the fixed frame at rtol 1e-12 (itself within 1e-10
+    deg of a 40-digit quadrature of the same launches, `benchmarks/quadrature_vertical.py`), and
+    theta max within 1e-9 deg, on launches that swing up to 89.93-89.99 deg."""
+    from ballsurvey.compose import FALLBACK_H_INIT, FALLBACK_H_MAX, STEP_OBSERVER
+    from ballsurvey.integrate.adaptive import integrate_adaptive
+
+    th, td, cd, pd = np.array(VERTICAL_TURNS).T
+    y0 = launch_state(th, td, cd, pd, TU)
+    p = np.repeat(P[:, None], len(th), 1)
+    T = 3.0 / TU
+    obs, status = cycle.cycles_by_quadrature(y0, p, T, parallel=False)
+    assert (status == cycle.DONE).all()
+    ref = integrate_adaptive(y0, p, T, 1e-12, 1e-15, fixed_frame=True, observer=STEP_OBSERVER,
+                             n_slots=ob.N_OBS, h_init=FALLBACK_H_INIT, h_max=FALLBACK_H_MAX / 10,
+                             parallel=False)
+    res = ref._replace(obs=obs, formulation=np.full_like(ref.formulation, QUADRATURE))
+    got, want = (classify(r, BALL.flat_face_theta_rad) for r in (res, ref))
+    assert (got["theta_max_deg"] > 89.93).all()
+    err = np.abs(fold_deg(got["turn_per_cycle_deg"] - want["turn_per_cycle_deg"]))
+    assert err.max() < 2.5e-7, err
+    assert np.abs(got["theta_max_deg"] - want["theta_max_deg"]).max() < 1e-9
+
+
 def _kernel_invariants(y):
     """(args, E, J, R, f_noise) of fast state y as `cycle.cycle_one` makes them (E less M g a)."""
     from ballsurvey.physics.euler import jellett, kinetic, routh
@@ -294,7 +352,8 @@ def test_a_turning_point_at_rounding_stops_there(monkeypatch):
         d = 1.0 if thdd > 0.0 else -1.0
         calls.clear()
         got = cycle._turning_point.py_func(y[2] + d * cycle.START_OFFSET, d, y[2],
-                                           2.0 * abs(thdd), f_noise, E, J, R, *P)
+                                           2.0 * abs(thdd), f_noise,
+                                           cycle._constants(E, J, R, *P))
         want = _brentq_end(args, y[2] + d * 1e-7, d, xtol=1e-15, rtol=1e-15)
         assert abs(got - want) < 1e-12, (th_deg, got, want)
         assert len(calls) <= 24, (th_deg, len(calls))
@@ -320,14 +379,14 @@ def test_a_turning_point_a_hair_below_the_vertical_against_brentq():
     for launch in AT_THE_VERTICAL:
         y = launch_state(*launch, TU)[:, 0]
         args, E, J, R, f_noise = _kernel_invariants(y)
+        inv = cycle._constants(E, J, R, *P)
         if y[5] == 0.0:  # at rest in theta: the launch is theta_min
             thdd = accelerations(*args)[0]
             assert thdd > 0.0
             got = cycle._turning_point(y[2] + cycle.START_OFFSET, 1.0, y[2], 2.0 * abs(thdd),
-                                       f_noise, E, J, R, *P)
+                                       f_noise, inv)
         else:
-            got = cycle._turning_point(y[2], 1.0, math.nan, cycle._F(y[2], E, J, R, *P),
-                                       f_noise, E, J, R, *P)
+            got = cycle._turning_point(y[2], 1.0, math.nan, cycle._F(y[2], inv), f_noise, inv)
         want = _brentq_end(args, y[2] + 1e-7, 1.0, xtol=1e-16, rtol=8.9e-16)
         assert 0.0 < lim - want < 1e-9, launch
         assert abs(got - want) < 1e-13, (launch, got, want)

@@ -81,19 +81,21 @@ FIRST_N, LEVELS = 16, 6
 MAX_N = FIRST_N << (LEVELS - 1)
 #: agreement of the period (relative) and of the half cycle's turn (relative, absolute in rad
 #: below 1 rad) between two successive levels. The turn's is wider: near the vertical chidot
-#: reaches 1e3 and the rounding of F close to the turning points (a difference of terms 1e6
-#: times larger) leaves it 1e-9 of noise (the integrals are then as good as that: 4e-7 deg)
+#: reaches 1e3 and the rounding of F close to the turning points leaves the turn 1e-10 to 1e-9
+#: of noise (at 5e-10, 4 of 300 launches with theta max 89.5-89.99 deg do not converge by
+#: N = MAX_N; at 5e-9 all do, within 1.2e-7 deg: `benchmarks/quadrature_vertical.py`)
 QUAD_RTOL, TURN_TOL = 1e-9, 5e-9
 #: the largest uncertainty of a turning point that F's rounding leaves (f_noise / |F'| there), as
 #: a fraction of the half-range h, at which the quadrature is trusted. Past it the ends' points
 #: spoil the integrals: a small swing (F small everywhere) near a steady circle, or near the
 #: vertical, where F is a difference of large terms. Measured against the fixed frame at rtol
 #: 1e-12 with the limit off (`benchmarks/quadrature_ends.py`, and 1100 launches more with small
-#: swings at 88.5-89.99 deg), the largest turn-per-cycle error below theta max 89.8 deg: under
-#: 1e-11, 1.5e-7 deg; 1e-11-1e-10, 5.3e-7 deg, and 3.2e-6 deg for a 0.38 deg swing near a
-#: steady circle at 3 deg of tilt (5e-11); 1e-10-1e-9, 1.9e-6 deg; beyond, 2.5e-5 to 6.6e-3 deg.
-#: (Above 89.8 deg F's rounding near the vertical leaves up to 1.9e-6 deg, which this does not
-#: catch.) 1.1 % of the headline map's launches are past it
+#: swings at 88.5-89.99 deg), with chidot in its plain Jellett form, the largest turn-per-cycle
+#: error below theta max 89.8 deg: under 1e-11, 1.5e-7 deg; 1e-11-1e-10, 5.3e-7 deg, and 3.2e-6
+#: deg for a 0.38 deg swing near a steady circle at 3 deg of tilt (5e-11); 1e-10-1e-9, 1.9e-6
+#: deg; beyond, 2.5e-5 to 6.6e-3 deg. With chidot about the vertical (`_rates_at`),
+#: `quadrature_ends.py --n 300`: under 1e-11, 3.4e-9 deg; 1e-11-1e-10, 1.5e-8 deg. 1.1 % of the
+#: headline map's launches are past it
 END_SPREAD_LIMIT = 1e-11
 #: the vertical less a hair: a tilt whose F is still positive there goes through it
 TILT_LIMIT = 0.5 * math.pi * (1.0 - 1e-13)
@@ -167,13 +169,41 @@ def tables():
 
 
 @jit
-def _rates_at(sth, cth, E, J, R, c, A, B):
+def _constants(E, J, R, c, A, B):
+    """The launch's constants its rates at a tilt are computed from (`_rates_at`): (E, R, c, A,
+    B, D+, D-, q+, q-), with q+- = sqrt(A B + B (+-1 - c)^2) (Routh's root at the vertical, +-90
+    deg) and D+- = B R (+-1 - c) / q+- - J (Jellett's numerator there)."""
+    qp = math.sqrt(A * B + B * (1.0 - c) ** 2)
+    qm = math.sqrt(A * B + B * (1.0 + c) ** 2)
+    return E, R, c, A, B, B * R * (1.0 - c) / qp - J, -B * R * (1.0 + c) / qm - J, qp, qm
+
+
+@jit
+def _rates_at(sth, cth, inv):
     """(chidot, phidot, F = thetadot^2) at the tilt whose sine and cosine are sth, cth, from the
-    invariants (E: the energy less M g a). Free of calls: the level and path loops evaluate it
-    for many points at once (SIMD lanes)."""
-    w = R / math.sqrt(A * B + A * cth * cth + B * (sth - c) ** 2)
-    chc = (B * w * (sth - c) - J) / (A * cth)  # chidot cos(theta): bounded at the vertical
-    chd = chc / cth
+    launch's constants inv (`_constants`; E: the energy less M g a). Free of calls: the level and
+    path loops evaluate it for many points at once (SIMD lanes).
+
+    chidot = (B w (sin - c) - J) / (A cos^2) (Jellett's integral solved for it, w from Routh's)
+    is taken about the nearer vertical p = +-1 (the sign of sin): there the numerator is D_p, a
+    launch constant, plus a multiple of 1 - p sin = cos^2 / (1 + p sin), which cancels against
+    the cos^2 below (docs/physics.md section 6). Near the vertical the plain form's numerator is
+    a difference of terms far larger than itself, whose rounding, over cos^2, is a noise from
+    point to point in chidot that puts the turn per cycle up to 1e-6 deg off; here D_p's
+    rounding is one perturbation of J for the whole launch (1e-14 deg of turn)."""
+    E, R, c, A, B, d_p, d_m, q_p, q_m = inv
+    c2 = cth * cth
+    sq = math.sqrt(A * B + A * c2 + B * (sth - c) ** 2)
+    w = R / sq
+    p = 1.0 if sth >= 0.0 else -1.0
+    d = d_p if sth >= 0.0 else d_m
+    q1 = q_p if sth >= 0.0 else q_m
+    ps1 = 1.0 + p * sth
+    x = B * p * (p + sth - 2.0 * c) - A * ps1  # (q1^2 - sq^2) / (1 - p sin)
+    qq = q1 * (q1 + sq)
+    chd = ((d * ps1 * sq * qq + B * R * c2 * ((p - c) * x - p * qq))
+           / (A * c2 * ps1 * sq * qq))
+    chc = chd * cth  # chidot cos(theta): bounded at the vertical
     phd = w + chd * sth
     # the energy at thetadot = 0 (`kinetic` less c sin theta) from w and chidot cos(theta),
     # not from phidot - chidot sin(theta), which loses |chidot| ulps near the vertical
@@ -183,34 +213,34 @@ def _rates_at(sth, cth, E, J, R, c, A, B):
 
 
 @jit
-def _rates(th, E, J, R, c, A, B):
+def _rates(th, inv):
     """(sin, cos, chidot, phidot, F = thetadot^2) at tilt th (`_rates_at`)."""
     sth, cth = math.sin(th), math.cos(th)
-    chd, phd, f = _rates_at(sth, cth, E, J, R, c, A, B)
+    chd, phd, f = _rates_at(sth, cth, inv)
     return sth, cth, chd, phd, f
 
 
 @jit
-def _F(th, E, J, R, c, A, B):
-    return _rates(th, E, J, R, c, A, B)[4]
+def _F(th, inv):
+    return _rates(th, inv)[4]
 
 
 @jit
-def _F_dF(th, E, J, R, c, A, B):
+def _F_dF(th, inv):
     """F and its derivative 2 thetaddot(th, thetadot = sqrt F) (thetaddot depends on thetadot^2
     only)."""
-    sth, cth, chd, phd, f = _rates(th, E, J, R, c, A, B)
-    thdd = accelerations(sth, cth, math.sqrt(max(f, 0.0)), chd, phd, c, A, B)[0]
+    sth, cth, chd, phd, f = _rates(th, inv)
+    thdd = accelerations(sth, cth, math.sqrt(max(f, 0.0)), chd, phd, inv[2], inv[3], inv[4])[0]
     return f, 2.0 * thdd
 
 
 @jit
-def _root(a, b, x, f_noise, E, J, R, c, A, B):
+def _root(a, b, x, f_noise, inv):
     """The sign change of F between a (F > 0) and b (F <= 0), from x inside: Newton kept in the
     bracket by bisection, until F is within f_noise (its rounding) of 0 or the step is
     rounding."""
     for _ in range(200):
-        f, df = _F_dF(x, E, J, R, c, A, B)
+        f, df = _F_dF(x, inv)
         if abs(f) <= f_noise:  # a root to F's own rounding: one Newton step more is the best
             nx = x - f / df if df != 0.0 else x
             return nx if min(a, b) <= nx <= max(a, b) else x
@@ -237,7 +267,7 @@ def _root(a, b, x, f_noise, E, J, R, c, A, B):
 
 
 @jit
-def _turning_point(start, d, ref, q_start, f_noise, E, J, R, c, A, B):
+def _turning_point(start, d, ref, q_start, f_noise, inv):
     """The first root of F from start (F > 0 there) in direction d (+-1); NaN where the tilt
     reaches the vertical.
 
@@ -257,7 +287,7 @@ def _turning_point(start, d, ref, q_start, f_noise, E, J, R, c, A, B):
         vertical = abs(b) >= TILT_LIMIT
         if vertical:
             b = d * TILT_LIMIT
-        fb = _F(b, E, J, R, c, A, B)
+        fb = _F(b, inv)
         if vertical and fb > 0.0:
             return math.nan
         qb = fb / abs(b - ref) if deflate else fb
@@ -273,7 +303,7 @@ def _turning_point(start, d, ref, q_start, f_noise, E, J, R, c, A, B):
                 x = a + (b - a) * (qa / (qa - qb)) if qa - qb > 0.0 else 0.5 * (a + b)
             if not lo < x < hi:
                 x = 0.5 * (a + b)
-            return _root(a, b, x, f_noise, E, J, R, c, A, B)
+            return _root(a, b, x, f_noise, inv)
         if qa > qb:  # q falls: its root lies about qb / (qa - qb) steps further on
             step = min(PREDICT_STEP_MAX, max(SEARCH_STEP_MIN,
                                              PREDICT_OVERSHOOT * step * qb / (qa - qb)))
@@ -284,11 +314,11 @@ def _turning_point(start, d, ref, q_start, f_noise, E, J, R, c, A, B):
 
 
 @jit
-def _end_tau(th, h, E, J, R, c, A, B):
+def _end_tau(th, h, inv):
     """(dt/ds, chidot, phidot, sin, cos) at a turning point th: dt/ds is the limit
     sqrt(h / |thetaddot|)."""
-    sth, cth, chd, phd, _ = _rates(th, E, J, R, c, A, B)
-    thdd = accelerations(sth, cth, 0.0, chd, phd, c, A, B)[0]
+    sth, cth, chd, phd, _ = _rates(th, inv)
+    thdd = accelerations(sth, cth, 0.0, chd, phd, inv[2], inv[3], inv[4])[0]
     return math.sqrt(h / abs(thdd)), chd, phd, sth, cth
 
 
@@ -369,23 +399,24 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
     if abs(thd0) < steady_tol and abs(thdd0) < steady_tol:
         return STEADY
     f_noise = ROOT_NOISE * 2.2e-16 * scale
+    inv = _constants(E, J, R, c, A, B)
     # --- turning points ----------------------------------------------------------------------
     if thd0 == 0.0:
         d = 1.0 if thdd0 > 0.0 else -1.0
         start = th0 + d * START_OFFSET
-        if not _F(start, E, J, R, c, A, B) > 0.0:
+        if not _F(start, inv) > 0.0:
             return UNCONVERGED
         # F vanishes at th0 with slope 2 thdd0: q = F / |theta - th0| starts at 2 |thdd0|
-        other = _turning_point(start, d, th0, 2.0 * abs(thdd0), f_noise, E, J, R, c, A, B)
+        other = _turning_point(start, d, th0, 2.0 * abs(thdd0), f_noise, inv)
         if not math.isfinite(other):
             return VERTICAL
         lo, hi = (th0, other) if d > 0.0 else (other, th0)
     else:
-        f0 = _F(th0, E, J, R, c, A, B)
+        f0 = _F(th0, inv)
         if not f0 > 0.0:
             return UNCONVERGED
-        lo = _turning_point(th0, -1.0, math.nan, f0, f_noise, E, J, R, c, A, B)
-        hi = _turning_point(th0, 1.0, math.nan, f0, f_noise, E, J, R, c, A, B)
+        lo = _turning_point(th0, -1.0, math.nan, f0, f_noise, inv)
+        hi = _turning_point(th0, 1.0, math.nan, f0, f_noise, inv)
         if not (math.isfinite(lo) and math.isfinite(hi)):
             return VERTICAL
     m, h = 0.5 * (hi + lo), 0.5 * (hi - lo)
@@ -401,7 +432,7 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
         if L == 0:  # the ends: the turning points, where dt/ds is its limit
             for k in (0, MAX_N):
                 th = lo if k == 0 else hi
-                tau, chd, phd, sth, cth = _end_tau(th, h, E, J, R, c, A, B)
+                tau, chd, phd, sth, cth = _end_tau(th, h, inv)
                 scr[_TAU, k], scr[_CHD, k], scr[_PHD, k] = tau, chd, phd
                 scr[_THD, k], scr[_STH, k], scr[_CTH, k] = 0.0, sth, cth
             # how far F's rounding leaves a turning point, f_noise / |F'| (F' = 2 thetaddot =
@@ -424,7 +455,7 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
         for p in range(uintp(count)):
             sth, cth = sincos_shift(s_m, c_m, node[_WS, p])
             node[_WS, p], node[_WC, p] = sth, cth
-            chd, phd, f = _rates_at(sth, cth, E, J, R, c, A, B)
+            chd, phd, f = _rates_at(sth, cth, inv)
             thd = math.sqrt(f)
             node[_WCHD, p], node[_WPHD, p], node[_WF, p] = chd, phd, f
             node[_WTHD, p], node[_WTAU, p] = thd, node[_WH, p] / thd
