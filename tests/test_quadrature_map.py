@@ -442,7 +442,7 @@ file = "{out}"
     # (45, 0, 0, 0) rocks through the upright position: at least it goes to the integrator
     assert n_fallback >= 1 and (q.formulation.values == QUADRATURE).sum() >= 6
     assert (f"integrated (dop853) where the quadrature cannot go (tilt through the vertical, "
-            f"launched steady, not converged): {n_fallback}") in out
+            f"launched steady, a swing too small to resolve, not converged): {n_fallback}") in out
     assert q.formulation.attrs["flag_meanings"] == "euler_angles fixed_frame quadrature"
     assert np.array_equal(q.label.values, d.label.values)
 

@@ -227,7 +227,8 @@ def sweep_summary(path, n_launches: int, report: dict) -> str:
                      f"dop853)")
     if fallback is not None and by_quadrature:
         lines.append(f"  integrated (dop853) where the quadrature cannot go (tilt through the "
-                     f"vertical, launched steady, not converged): {fallback}")
+                     f"vertical, launched steady, a swing too small to resolve, not converged): "
+                     f"{fallback}")
     elif fallback is not None:
         lines.append(f"  done again near the vertical: {redone} from their invariants by "
                      f"quadrature, {fallback} integrated in the fixed frame (where the quadrature "
