@@ -82,8 +82,8 @@ MAX_N = FIRST_N << (LEVELS - 1)
 #: agreement of the period (relative) and of the half cycle's turn (relative, absolute in rad
 #: below 1 rad) between two successive levels. The turn's is wider: near the vertical chidot
 #: reaches 1e3 and the rounding of F close to the turning points leaves the turn 1e-10 to 1e-9
-#: of noise (at 5e-10, 4 of 300 launches with theta max 89.5-89.99 deg do not converge by
-#: N = MAX_N; at 5e-9 all do, within 1.2e-7 deg: `benchmarks/quadrature_vertical.py`)
+#: of noise (at 5e-10, 1-5 of 300 launches with theta max 89.5-89.99 deg do not converge by
+#: N = MAX_N; at 5e-9 all do, within 1.5e-7 deg: `benchmarks/quadrature_vertical.py`)
 QUAD_RTOL, TURN_TOL = 1e-9, 5e-9
 #: the largest uncertainty of a turning point that F's rounding leaves (f_noise / |F'| there), as
 #: a fraction of the half-range h, at which the quadrature is trusted. Past it the ends' points
@@ -189,7 +189,7 @@ def _rates_at(sth, cth, inv):
     launch constant, plus a multiple of 1 - p sin = cos^2 / (1 + p sin), which cancels against
     the cos^2 below (docs/physics.md section 6). Near the vertical the plain form's numerator is
     a difference of terms far larger than itself, whose rounding, over cos^2, is a noise from
-    point to point in chidot that puts the turn per cycle up to 1e-6 deg off; here D_p's
+    point to point in chidot that puts the turn per cycle up to 1.3e-6 deg off; here D_p's
     rounding is one perturbation of J for the whole launch (1e-14 deg of turn)."""
     E, R, c, A, B, d_p, d_m, q_p, q_m = inv
     c2 = cth * cth
