@@ -3,7 +3,7 @@ swings up to within a fraction of a degree of +90 deg, against two references, w
 revision's kernel beside today's when --against is given.
 
     python benchmarks/quadrature_vertical.py [--n 300] [--seed 0] [--lo 89.5] [--hi 89.99]
-                                             [--circles] [--against REV]
+                                             [--circles | --below] [--against REV]
 
 Launches (the paper's ball) are drawn near the vertical: theta0 85-89.99 deg, half of them with
 thetadot0 in +-0.5 rad/s, chidot0 +-13 and phidot0 +-10 rad/s (swings of about 1 to 6 deg); or,
@@ -17,8 +17,10 @@ that today's kernel does (status done) with theta max in [lo, hi] deg. Reference
 - "fixed": the fixed-frame integration (no singularity at the vertical) by adaptive DOPRI5 at
   rtol 1e-12 with the stepping observer, a different formulation and time stepping.
 Printed per bin of theta max: the launches, the largest |turn per cycle| error of each kernel
-against mp and against fixed, and the largest theta max error against mp; then how far the two
-references are apart.
+against mp (and how many over 1e-6 deg) and against fixed, and the largest theta max error
+against mp; then how far the two references are apart. --below does the same near -90 deg: the
+launches' theta min in [-hi, -lo] deg, each run 15 s (the fixed frame's turn needs two cycles;
+near -90 deg it is the less reliable of the two references).
 """
 from __future__ import annotations
 
@@ -47,8 +49,10 @@ ROOT = Path(__file__).resolve().parents[1]
 REL = "src/ballsurvey/classify/cycle.py"
 
 
-def draw(n: int, lo: float, hi: float, rng, circles: bool = False) -> np.ndarray:
-    """(4, n) launches (deg, rad/s) today's kernel does, theta max in [lo, hi] deg. circles: on
+def draw(n: int, lo: float, hi: float, rng, circles: bool = False,
+         below: bool = False) -> np.ndarray:
+    """(4, n) launches (deg, rad/s) today's kernel does, theta max in [lo, hi] deg (below: -theta
+    min, from theta0 -89.99 to -80 deg, the same rates). circles: on
     a steady circle (tilt 88-89.99 deg, precession +-(1-10) sqrt(g/a)) with a tilt rate of
     1e-4 to 0.3 rad/s, the smallest swings the kernel does near the vertical."""
     c, A, B = P
@@ -63,22 +67,23 @@ def draw(n: int, lo: float, hi: float, rng, circles: bool = False) -> np.ndarray
             cand = np.array([th_c, rng.choice([-1.0, 1.0], m) * 10 ** rng.uniform(-4, -0.5, m),
                              om / TU, w / TU])  # Eq. (28): physics.steady.spin_for_circle
         else:
-            cand = np.array([rng.uniform(85.0, 89.99, m),
+            tilt = rng.uniform(-89.99, -80.0, m) if below else rng.uniform(85.0, 89.99, m)
+            cand = np.array([tilt,
                              rng.uniform(-0.5, 0.5, m) * (rng.random(m) < 0.5),
                              rng.uniform(-13.0, 13.0, m), rng.uniform(-10.0, 10.0, m)])
         obs, st = cycle.cycles_by_quadrature(launch_state(*cand, TU),
                                              np.repeat(P[:, None], m, 1), 3.0 / TU)
-        tmax = np.degrees(obs[ob.O_TH_MAX])
-        keep = (st == cycle.DONE) & (tmax >= lo) & (tmax <= hi)
+        end = -np.degrees(obs[ob.O_TH_MIN]) if below else np.degrees(obs[ob.O_TH_MAX])
+        keep = (st == cycle.DONE) & (end >= lo) & (end <= hi)
         rows = np.concatenate([rows, cand[:, keep]], axis=1)
     return rows[:, :n]
 
 
 def mp_cycle(th0, thd0, chd0, phd0, guess_lo, guess_hi):
-    """(turn per cycle rad, theta_max rad, the quadrature's error estimate) at 40 digits, of the
-    non-dimensional launch, from the definitions of the energy, Jellett's and Routh's integrals
-    (docs/physics.md section 6), near the kernel's turning points (guesses: the roots are
-    bracketed around them)."""
+    """(turn per cycle rad, theta_min, theta_max rad, the quadrature's error estimate) at 40
+    digits, of the non-dimensional launch, from the definitions of the energy, Jellett's and
+    Routh's integrals (docs/physics.md section 6), near the kernel's turning points (guesses: the
+    roots are bracketed around them)."""
     c, A, B = (mp.mpf(float(v)) for v in P)
     th0, thd0, chd0, phd0 = (mp.mpf(float(v)) for v in (th0, thd0, chd0, phd0))
 
@@ -120,7 +125,7 @@ def mp_cycle(th0, thd0, chd0, phd0, guess_lo, guess_hi):
 
     cuts = [-mp.pi / 2, -mp.pi / 4, 0, mp.pi / 4, 3 * mp.pi / 8, 7 * mp.pi / 16, mp.pi / 2]
     half, err = mp.quad(chd_dt_ds, cuts, error=True)
-    return 2 * half, hi, err
+    return 2 * half, lo, hi, err
 
 
 def turns_deg(obs, ref) -> np.ndarray:
@@ -139,14 +144,19 @@ def main() -> None:
     ap.add_argument("--against", help="git revision of a kernel to print beside today's")
     ap.add_argument("--circles", action="store_true",
                     help="launches on steady circles near the vertical, nudged in tilt rate")
+    ap.add_argument("--below", action="store_true",
+                    help="near -90 deg: --lo and --hi bound -theta_min, theta0 -89.99 to -80 deg")
     args = ap.parse_args()
     if args.n < 1 or not args.lo < args.hi < 90.0:
         ap.error("need --n >= 1 and --lo < --hi < 90")
     mp.mp.dps = 40
-    rows = draw(args.n, args.lo, args.hi, np.random.default_rng(args.seed), args.circles)
+    if args.below and args.circles:
+        ap.error("--below draws no circles")
+    rows = draw(args.n, args.lo, args.hi, np.random.default_rng(args.seed), args.circles,
+                args.below)
     y0 = launch_state(*rows, TU)
     p = np.repeat(P[:, None], y0.shape[1], 1)
-    T = 3.0 / TU
+    T = (15.0 if args.below else 3.0) / TU  # (swings from -90 deg run long)
     kernels = {"today": cycle}
     if args.against:
         text = subprocess.run(["git", "show", f"{args.against}:{REL}"], cwd=ROOT, check=True,
@@ -159,16 +169,19 @@ def main() -> None:
     got = {}
     for name, mod in kernels.items():
         obs, st = mod.cycles_by_quadrature(y0, p, T, parallel=False)
-        got[name] = (turns_deg(obs, ref), np.degrees(obs[ob.O_TH_MAX]), st == cycle.DONE)
+        end = -np.degrees(obs[ob.O_TH_MIN]) if args.below else np.degrees(obs[ob.O_TH_MAX])
+        got[name] = (turns_deg(obs, ref), end, st == cycle.DONE)
     obs_today = cycle.cycles_by_quadrature(y0, p, T, parallel=False)[0]
     mp_turn, mp_tmax, mp_err = (np.empty(y0.shape[1]) for _ in range(3))
     for i in range(y0.shape[1]):
-        turn, hi, err = mp_cycle(*y0[[2, 5, 6, 7], i], obs_today[ob.O_TH_MIN, i],
+        turn, lo, hi, err = mp_cycle(*y0[[2, 5, 6, 7], i], obs_today[ob.O_TH_MIN, i],
                                  obs_today[ob.O_TH_MAX, i])
         mp_turn[i] = float(fold_deg(np.array([float(mp.degrees(turn))]))[0])
-        mp_tmax[i], mp_err[i] = float(mp.degrees(hi)), float(mp.degrees(2 * err))
+        mp_tmax[i] = -float(mp.degrees(lo)) if args.below else float(mp.degrees(hi))
+        mp_err[i] = float(mp.degrees(2 * err))
     swing = np.degrees(obs_today[ob.O_TH_MAX] - obs_today[ob.O_TH_MIN])
-    print(f"{y0.shape[1]} launches near the vertical (seed {args.seed}), theta max "
+    name_end = "-theta min" if args.below else "theta max"
+    print(f"{y0.shape[1]} launches near the vertical (seed {args.seed}), {name_end} "
           f"{args.lo}-{args.hi} deg, swings {swing.min():.2f}-{swing.max():.2f} deg; errors in "
           "deg against mp (40 digits) and the fixed frame (rtol 1e-12)")
     edges = [args.lo] + [e for e in (89.8, 89.9, 89.95) if args.lo < e < args.hi] + [args.hi]
@@ -176,19 +189,21 @@ def main() -> None:
         m = (mp_tmax >= a) & (mp_tmax <= b)
         if not m.any():
             continue
-        print(f"  theta max {a:.2f}-{b:.2f} deg: {m.sum()} launches")
+        print(f"  {name_end} {a:.2f}-{b:.2f} deg: {m.sum()} launches")
         for name, (turn, tmax, done) in got.items():
             k = m & done
             if not k.any():
                 print(f"    {name:>12}: does none of them")
                 continue
-            e_mp = np.abs(fold_deg(turn - mp_turn))[k].max()
-            e_fx = np.abs(fold_deg(turn - fixed))[k].max()
+            e_mp = np.abs(fold_deg(turn - mp_turn))[k]
+            e_fx = np.nanmax(np.abs(fold_deg(turn - fixed))[k])
             e_th = np.abs(tmax - mp_tmax)[k].max()
-            print(f"    {name:>12}: does {k.sum()}, turn per cycle {e_mp:.1e} (mp) "
-                  f"{e_fx:.1e} (fixed), theta max {e_th:.1e} (mp)")
-    print(f"  the references apart: turn per cycle {np.abs(fold_deg(fixed - mp_turn)).max():.1e}"
-          f" deg; mp's own error estimate at most {np.nanmax(mp_err):.0e} deg")
+            print(f"    {name:>12}: does {k.sum()}, turn per cycle {np.nanmax(e_mp):.1e} (mp; "
+                  f"over 1e-6: {np.sum(e_mp > 1e-6)}) {e_fx:.1e} (fixed), {name_end} "
+                  f"{e_th:.1e} (mp)")
+    apart = np.nanmax(np.abs(fold_deg(fixed - mp_turn)))
+    print(f"  the references apart: turn per cycle {apart:.1e} deg; mp's own error estimate at "
+          f"most {np.nanmax(mp_err):.0e} deg")
 
 
 if __name__ == "__main__":
