@@ -166,12 +166,12 @@ def main() -> None:
                              n_slots=ob.N_OBS, h_init=FALLBACK_H_INIT,
                              h_max=FALLBACK_H_MAX / 10, parallel=False)
     fixed = classify(ref, BALL.flat_face_theta_rad)["turn_per_cycle_deg"]
-    got = {}
+    got, records = {}, {}
     for name, mod in kernels.items():
-        obs, st = mod.cycles_by_quadrature(y0, p, T, parallel=False)
+        obs, st = records[name] = mod.cycles_by_quadrature(y0, p, T, parallel=False)
         end = -np.degrees(obs[ob.O_TH_MIN]) if args.below else np.degrees(obs[ob.O_TH_MAX])
         got[name] = (turns_deg(obs, ref), end, st == cycle.DONE)
-    obs_today = cycle.cycles_by_quadrature(y0, p, T, parallel=False)[0]
+    obs_today = records["today"][0]
     mp_turn, mp_tmax, mp_err = (np.empty(y0.shape[1]) for _ in range(3))
     for i in range(y0.shape[1]):
         turn, lo, hi, err = mp_cycle(*y0[[2, 5, 6, 7], i], obs_today[ob.O_TH_MIN, i],

@@ -246,18 +246,18 @@ def test_chidot_about_the_vertical_is_jellett_s_form(monkeypatch):
 
     import mpmath as mp
 
-    mp.mp.dps = 50
     monkeypatch.setattr(cycle, "math", types.SimpleNamespace(sqrt=mp.sqrt))
-    c, A, B = (mp.mpf(float(v)) for v in P)
-    for th_deg in (-89.999, -60.0, -3.0, 0.0, 2.0, 45.0, 89.9, 89.999):
-        th = mp.radians(th_deg)
-        s, co = mp.sin(th), mp.cos(th)
-        for J, R in ((mp.mpf("0.7"), mp.mpf("-1.3")), (mp.mpf("-2.1"), mp.mpf("0.4"))):
-            inv = cycle._constants.py_func(mp.mpf("0.5"), J, R, c, A, B)
-            got = cycle._rates_at.py_func(s, co, inv)[0]
-            w = R / mp.sqrt(A * B + A * co ** 2 + B * (s - c) ** 2)
-            want = (B * w * (s - c) - J) / (A * co ** 2)
-            assert abs(got - want) <= mp.mpf("1e-40") * abs(want), (th_deg, got, want)
+    with mp.workdps(50):  # (mpmath's precision is global: restored on leaving)
+        c, A, B = (mp.mpf(float(v)) for v in P)
+        for th_deg in (-89.999, -60.0, -3.0, 0.0, 2.0, 45.0, 89.9, 89.999):
+            th = mp.radians(th_deg)
+            s, co = mp.sin(th), mp.cos(th)
+            for J, R in ((mp.mpf("0.7"), mp.mpf("-1.3")), (mp.mpf("-2.1"), mp.mpf("0.4"))):
+                inv = cycle._constants.py_func(mp.mpf("0.5"), J, R, c, A, B)
+                got = cycle._rates_at.py_func(s, co, inv)[0]
+                w = R / mp.sqrt(A * B + A * co ** 2 + B * (s - c) ** 2)
+                want = (B * w * (s - c) - J) / (A * co ** 2)
+                assert abs(got - want) <= mp.mpf("1e-40") * abs(want), (th_deg, got, want)
 
 
 #: launches (theta0 deg, thetadot0, chidot0, phidot0 rad/s) whose tilt swings up to 89.93-89.99
