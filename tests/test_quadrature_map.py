@@ -393,18 +393,37 @@ def test_a_turning_point_a_hair_below_the_vertical_against_brentq():
 
 
 def test_results_do_not_depend_on_block_or_threads():
+    import numba
+
     th, td, cd, pd = LAUNCHES.T
+    # and 300 launches of the headline box more: blocks shared out among the threads as they
+    # come free, slot buffers of SLOT_BLOCK launches copied out (a few launches not done)
+    rng = np.random.default_rng(5)
+    m = 300
+    th = np.concatenate([th, rng.uniform(-20, 60, m)])
+    td = np.concatenate([td, np.where(rng.random(m) < 0.3, rng.uniform(-3, 3, m), 0.0)])
+    cd = np.concatenate([cd, rng.uniform(-12, 12, m)])
+    pd = np.concatenate([pd, rng.uniform(-8, 8, m)])
     y0 = launch_state(th, td, cd, pd, TU)
     params = np.repeat(P[:, None], len(th), 1)
     a, sa = cycle.cycles_by_quadrature(y0, params, 20 / TU, stop_after=3, block=64)
-    b, sb = cycle.cycles_by_quadrature(y0, params, 20 / TU, stop_after=3, block=1)
-    c, sc = cycle.cycles_by_quadrature(y0, params, 20 / TU, stop_after=3, parallel=False)
-    assert np.array_equal(a, b, equal_nan=True) and np.array_equal(a, c, equal_nan=True)
-    assert np.array_equal(sa, sb) and np.array_equal(sa, sc)
+    runs = [cycle.cycles_by_quadrature(y0, params, 20 / TU, stop_after=3, block=b)
+            for b in (1, 7, 1000)]
+    runs.append(cycle.cycles_by_quadrature(y0, params, 20 / TU, stop_after=3, parallel=False))
+    threads = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        runs.append(cycle.cycles_by_quadrature(y0, params, 20 / TU, stop_after=3, block=16))
+    finally:
+        numba.set_num_threads(threads)
+    for b, sb in runs:
+        assert np.array_equal(a, b, equal_nan=True) and np.array_equal(sa, sb)
+    assert 0 < (sa != cycle.DONE).sum() < 20
     # period mode counts at most stop_after maxima; a full run every maximum within T
     full, _ = cycle.cycles_by_quadrature(y0, params, 20 / TU)
-    assert (sa == cycle.DONE).all()
-    assert (a[ob.O_NMAX] <= 3).all() and (full[ob.O_NMAX] >= a[ob.O_NMAX]).all()
+    done = sa == cycle.DONE
+    assert done[:len(LAUNCHES)].all() and np.isnan(a[:, ~done]).all()
+    assert (a[ob.O_NMAX, done] <= 3).all() and (full[ob.O_NMAX, done] >= a[ob.O_NMAX, done]).all()
 
 
 def test_a_quadrature_sweep_counts_its_fallbacks_and_matches_dop853(tmp_path):

@@ -159,3 +159,21 @@ def sqrt(x):
 
 
 sqrt.device_form = math.sqrt
+
+
+@nb.extending.intrinsic
+def fetch_add(typingctx, counter, delta):
+    """counter[0] += delta as one atomic step (LLVM's atomicrmw); returns the value before. For
+    threads that share out work: each takes the next item whichever of them is free first."""
+    if not (isinstance(counter, nb.types.Array) and counter.dtype == nb.types.int64
+            and isinstance(delta, nb.types.Integer)):
+        return None
+    sig = nb.types.int64(counter, delta)
+
+    def codegen(context, builder, signature, args):
+        arr = context.make_array(signature.args[0])(context, builder, args[0])
+        ptr = builder.gep(arr.data, [context.get_constant(nb.types.intp, 0)])
+        val = context.cast(builder, args[1], signature.args[1], nb.types.int64)
+        return builder.atomic_rmw("add", ptr, val, "seq_cst")
+
+    return sig, codegen

@@ -63,7 +63,7 @@ import numba as nb
 import numpy as np
 from numba import uintp
 
-from .._jit import njit
+from .._jit import fetch_add, njit
 from ..physics.euler import accelerations, heading_velocity, jellett, kinetic, normal_force, routh
 from . import observer as ob
 from .trig import atan2, sincos, sincos_shift  # by name: `integrate.cuda.device_twin`
@@ -622,49 +622,57 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
     return DONE
 
 
+#: launches whose slots `_block` gathers in its own buffer before copying them out, row by row
+SLOT_BLOCK = 64
+
+
 @jit
 def _block(y0, params, T, stop_after, steady_tol, tabs_s, sin_s, cos_s, weights, qm, offsets,
            lo, hi, obs, status):
+    """Launches lo..hi into obs[:, lo:hi] and status[lo:hi]. Each launch's slots are a column of
+    obs, whose rows lie a chunk's length apart: at a power-of-two length (the headline map's 8192
+    launches a chunk) the column's N_OBS cache lines all fall in one set of the caches, which
+    holds a dozen, and writing them cost the kernel half its time again. So a launch writes its
+    slots into a buffer of SLOT_BLOCK launches (rows SLOT_BLOCK apart), copied into obs row by
+    row once the launches are done."""
     scr = np.empty((N_SCRATCH, MAX_N + 1))
     node = np.empty((N_NODE, MAX_N + 1))
-    for i in range(lo, hi):
-        st = cycle_one(y0[2, i], y0[5, i], y0[6, i], y0[7, i], params[0, i], params[1, i],
-                       params[2, i], T, stop_after, steady_tol, tabs_s, sin_s, cos_s, weights,
-                       qm, offsets, scr, node, obs, i)
-        status[i] = st
-        if st != DONE:  # obs comes uninitialised (`cycles_by_quadrature`)
-            for q in range(ob.N_OBS):
-                obs[q, i] = math.nan
-
-
-@jit
-def _spread_step(nblocks):
-    """A step near nblocks / golden ratio with no common factor with nblocks: bi -> bi * step
-    mod nblocks visits every block once, and any run of successive bi lands all over."""
-    step = max(1, int(nblocks * 0.6180339887498949))
-    while True:
-        a, b = step, nblocks
-        while b:
-            a, b = b, a % b
-        if a == 1:
-            return step
-        step += 1
+    buf = np.empty((ob.N_OBS, SLOT_BLOCK))
+    for b0 in range(lo, hi, SLOT_BLOCK):
+        b1 = min(hi, b0 + SLOT_BLOCK)
+        for i in range(b0, b1):
+            k = i - b0
+            st = cycle_one(y0[2, i], y0[5, i], y0[6, i], y0[7, i], params[0, i], params[1, i],
+                           params[2, i], T, stop_after, steady_tol, tabs_s, sin_s, cos_s,
+                           weights, qm, offsets, scr, node, buf, k)
+            status[i] = st
+            if st != DONE:  # obs comes uninitialised (`cycles_by_quadrature`)
+                for q in range(ob.N_OBS):
+                    buf[q, k] = math.nan
+        for q in range(ob.N_OBS):
+            for i in range(b0, b1):
+                obs[q, i] = buf[q, i - b0]
 
 
 @njit(parallel=True, nogil=True, error_model="numpy", cache=True)
 def _run_parallel(y0, params, T, stop_after, steady_tol, s, sin_s, cos_s, weights, qm, offsets,
-                  block, obs, status):
-    """Blocks of `block` successive launches over the threads, in a spread order: the cost of a
-    launch drifts along a map's axes (by 5-13 % over half a headline unit), and numba hands
-    each thread a contiguous range of the loop, so blocks in launch order would leave one thread
-    the dearer half while the other waits."""
+                  block, threads, obs, status):
+    """Blocks of `block` successive launches shared out among `threads` threads (numba's number,
+    passed in: read here it would keep the function from numba's cache) as they come free
+    (an atomic counter): numba's prange would give each thread an equal, fixed share, and a
+    sweep's part writer, running beside the kernel, slows one of them (a tenth to a third of
+    the call's time). Which thread does a block never changes its launches' results."""
     n = y0.shape[1]
     nblocks = (n + block - 1) // block
-    step = _spread_step(nblocks)
-    for bi in nb.prange(nblocks):
-        lo = (bi * step) % nblocks * block
-        _block(y0, params, T, stop_after, steady_tol, s, sin_s, cos_s, weights, qm, offsets,
-               lo, min(n, lo + block), obs, status)
+    counter = np.zeros(1, dtype=np.int64)
+    for _ in nb.prange(threads):
+        while True:
+            bi = fetch_add(counter, 1)
+            if bi >= nblocks:
+                break
+            lo = bi * block
+            _block(y0, params, T, stop_after, steady_tol, s, sin_s, cos_s, weights, qm, offsets,
+                   lo, min(n, lo + block), obs, status)
 
 
 def cycles_by_quadrature(y0, params, T, *, stop_after=0, steady_tol=1e-8, block=64,
@@ -681,7 +689,7 @@ def cycles_by_quadrature(y0, params, T, *, stop_after=0, steady_tol=1e-8, block=
         tabs = tables()
         if parallel:
             _run_parallel(y0, params, float(T), int(stop_after), float(steady_tol), *tabs,
-                          max(1, int(block)), obs, status)
+                          max(1, int(block)), nb.get_num_threads(), obs, status)
         else:  # the block kernel itself, GIL released: no serial driver to compile
             _block(y0, params, float(T), int(stop_after), float(steady_tol), *tabs, 0, n, obs,
                    status)
