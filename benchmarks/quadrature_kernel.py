@@ -35,7 +35,9 @@ REL = "src/ballsurvey/classify/cycle.py"
 
 def _module(text: str, name: str, folder: Path):
     """cycle.py's text as a stand-alone module: absolute imports, numba's own njit, no cache."""
-    text = (text.replace("from .._jit import njit", "from numba import njit")
+    text = (text.replace("from .._jit import fetch_add, njit",
+                         "from numba import njit\nfrom ballsurvey._jit import fetch_add")
+            .replace("from .._jit import njit", "from numba import njit")
             .replace("from ..physics", "from ballsurvey.physics")
             .replace("from . import observer", "from ballsurvey.classify import observer")
             .replace("from .trig import", "from ballsurvey.classify.trig import")

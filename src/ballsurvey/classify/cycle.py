@@ -11,12 +11,15 @@ heading there).
 Turning points. From the launch (a turning point itself when thetadot0 = 0: the sign of
 thetaddot0 says which), F is followed outward until it changes sign (a tilt that reaches the
 vertical, +-90 deg less 1e-13, is left to the integrator): each probe steps to the extrapolated
-root of q = F / |theta - theta0| (launch at a turning point: no root there, linear where F is a
-parabola) or of q = F (`_turning_point`), and the root is solved by Newton's method on F with its
-exact derivative F' = 2 thetaddot(theta, thetadot = sqrt F), from q's root interpolated through
-the search's last three points, kept inside the bracket by bisection, until F is within its rounding
+root of q = F cos^2 / |theta - theta0| (launch at a turning point: no root there) or of q = F
+cos^2 (`_turning_point`; F grows as 1 / cos^2 towards the vertical, F cos^2 has the same roots
+and bends far less), and the root is solved by Newton's method on F cos^2 with F's exact
+derivative F' = 2 thetaddot(theta, thetadot = sqrt F), from q's root interpolated through the
+search's last three points, kept inside the bracket by bisection, until F is within its rounding
 of 0 or a Newton step is rounding-sized (x is then the root to rounding, whichever sign F's
-rounding gave it; near the vertical, also short against the distance to it).
+rounding gave it; near the vertical, also short against the distance to it). Evaluations a
+turning point, headline launches (`benchmarks/turning_points.py`): 3.9 of F and 3.5 of F and F'
+(on F itself: 2.9 and 5.8).
 
 Quadrature. With theta = m + h sin s (m, h: the middle and half-range), s in [-pi/2, pi/2] runs the
 rising half cycle, dt/ds = h cos s / sqrt(F) is smooth (its value at the ends, sqrt(h /
@@ -103,7 +106,7 @@ TILT_LIMIT = 0.5 * math.pi * (1.0 - 1e-13)
 SEARCH_STEP, SEARCH_STEP_MAX, SEARCH_STEP_MIN = math.radians(2.0), math.radians(8.0), 1e-9
 #: a predicted step reaches this far past the extrapolated root, to bracket it in one probe; at
 #: most PREDICT_STEP_MAX (rad)
-PREDICT_OVERSHOOT, PREDICT_STEP_MAX = 1.25, math.radians(30.0)
+PREDICT_OVERSHOOT, PREDICT_STEP_MAX = 1.5, math.radians(30.0)
 #: F within this many of its rounding units (eps times the energy's terms) of 0 is a root
 ROOT_NOISE = 16.0
 #: a launch at rest in theta starts its search this far inside (rad)
@@ -227,11 +230,11 @@ def _F(th, inv):
 
 @jit
 def _F_dF(th, inv):
-    """F and its derivative 2 thetaddot(th, thetadot = sqrt F) (thetaddot depends on thetadot^2
-    only)."""
+    """F, its derivative 2 thetaddot(th, thetadot = sqrt F) (thetaddot depends on thetadot^2
+    only), and tan th."""
     sth, cth, chd, phd, f = _rates(th, inv)
     thdd = accelerations(sth, cth, math.sqrt(max(f, 0.0)), chd, phd, inv[2], inv[3], inv[4])[0]
-    return f, 2.0 * thdd
+    return f, 2.0 * thdd, sth / cth
 
 
 @jit
@@ -240,7 +243,11 @@ def _root(a, b, x, f_noise, inv):
     bracket by bisection, until F is within f_noise (its rounding) of 0 or the step is
     rounding."""
     for _ in range(200):
-        f, df = _F_dF(x, inv)
+        f, df, tn = _F_dF(x, inv)
+        # Newton's step on F cos^2 (the same roots; its derivative over cos^2 is F' - 2 F tan):
+        # F's 1 / cos^2 growth towards the vertical bends F, and Newton's method on F itself
+        # creeps in from a far start
+        df -= 2.0 * f * tn
         if abs(f) <= f_noise:  # a root to F's own rounding: one Newton step more is the best
             nx = x - f / df if df != 0.0 else x
             return nx if min(a, b) <= nx <= max(a, b) else x
@@ -271,14 +278,15 @@ def _turning_point(start, d, ref, q_start, f_noise, inv):
     """The first root of F from start (F > 0 there) in direction d (+-1); NaN where the tilt
     reaches the vertical.
 
-    The search follows q = F / |theta - ref| when ref is a root of F itself (the launch at a
-    turning point: q has no root there, and is linear in theta where F is a parabola), else q =
-    F (ref NaN); q_start is q at start. Each probe's step is the linear extrapolation of q's last
-    two values to its root, overshot by PREDICT_OVERSHOOT (at most PREDICT_STEP_MAX); where q
-    does not fall, the step doubles from SEARCH_STEP (at most SEARCH_STEP_MAX). A near-parabolic
-    F is so bracketed in one or two probes; the root is then solved (`_root`) from q's inverse
-    quadratic interpolation through the last three points (linear through the bracket's ends
-    where that falls outside it)."""
+    The search follows q = F cos^2 / |theta - ref| when ref is a root of F itself (the launch at
+    a turning point: q has no root there, and is linear in theta where F cos^2 is a parabola),
+    else q = F cos^2 (ref NaN); q_start is q at start. F grows as 1 / cos^2 towards the vertical;
+    F cos^2, with the same roots, bends far less. Each probe's step is the linear extrapolation
+    of q's last two values to its root, overshot by PREDICT_OVERSHOOT (at most
+    PREDICT_STEP_MAX); where q does not fall, the step doubles from SEARCH_STEP (at most
+    SEARCH_STEP_MAX). The root is then solved (`_root`) from q's inverse quadratic
+    interpolation through the last three points (linear through the bracket's ends where that
+    falls outside it)."""
     deflate = math.isfinite(ref)
     a, qa, step = start, q_start, SEARCH_STEP
     p, qp = math.nan, math.nan  # the point before a
@@ -287,10 +295,12 @@ def _turning_point(start, d, ref, q_start, f_noise, inv):
         vertical = abs(b) >= TILT_LIMIT
         if vertical:
             b = d * TILT_LIMIT
-        fb = _F(b, inv)
+        _, cb, _, _, fb = _rates(b, inv)
         if vertical and fb > 0.0:
             return math.nan
-        qb = fb / abs(b - ref) if deflate else fb
+        qb = fb * cb * cb
+        if deflate:
+            qb /= abs(b - ref)
         if fb <= 0.0:
             lo, hi = min(a, b), max(a, b)
             # q's root: inverse quadratic interpolation through the last three points, else
@@ -407,7 +417,7 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
         if not _F(start, inv) > 0.0:
             return UNCONVERGED
         # F vanishes at th0 with slope 2 thdd0: q = F / |theta - th0| starts at 2 |thdd0|
-        other = _turning_point(start, d, th0, 2.0 * abs(thdd0), f_noise, inv)
+        other = _turning_point(start, d, th0, 2.0 * abs(thdd0) * c0 * c0, f_noise, inv)
         if not math.isfinite(other):
             return VERTICAL
         lo, hi = (th0, other) if d > 0.0 else (other, th0)
@@ -415,8 +425,8 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
         f0 = _F(th0, inv)
         if not f0 > 0.0:
             return UNCONVERGED
-        lo = _turning_point(th0, -1.0, math.nan, f0, f_noise, inv)
-        hi = _turning_point(th0, 1.0, math.nan, f0, f_noise, inv)
+        lo = _turning_point(th0, -1.0, math.nan, f0 * c0 * c0, f_noise, inv)
+        hi = _turning_point(th0, 1.0, math.nan, f0 * c0 * c0, f_noise, inv)
         if not (math.isfinite(lo) and math.isfinite(hi)):
             return VERTICAL
     m, h = 0.5 * (hi + lo), 0.5 * (hi - lo)
@@ -580,8 +590,7 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
         n_max = min(n_max, float(stop_after))
     n_cyc = max(n_max - 1.0, 0.0)
     # --- the observer's slots -----------------------------------------------------------------
-    for q in range(ob.N_OBS):
-        obs[q, i] = math.nan
+    # (the slots not written here hold NaN from the caller: `_block`, `cuda.per_launch`)
     obs[ob.O_TH_MIN, i], obs[ob.O_TH_MAX, i] = lo, hi
     obs[ob.O_E0, i], obs[ob.O_J0, i], obs[ob.O_R0, i] = E + 1.0, J, R
     obs[ob.O_DE, i] = obs[ob.O_DJ, i] = obs[ob.O_DR, i] = 0.0
@@ -622,8 +631,10 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
     return DONE
 
 
-#: launches whose slots `_block` gathers in its own buffer before copying them out, row by row
-SLOT_BLOCK = 64
+#: launches whose slots `_block` gathers in its own buffer before copying them out, row by row:
+#: one cache line a slot (a buffer of 64 launches, 37 kB beside the scratch rows, made the kernel
+#: 6 % slower)
+SLOT_BLOCK = 8
 
 
 @jit
@@ -633,11 +644,12 @@ def _block(y0, params, T, stop_after, steady_tol, tabs_s, sin_s, cos_s, weights,
     obs, whose rows lie a chunk's length apart: at a power-of-two length (the headline map's 8192
     launches a chunk) the column's N_OBS cache lines all fall in one set of the caches, which
     holds a dozen, and writing them cost the kernel half its time again. So a launch writes its
-    slots into a buffer of SLOT_BLOCK launches (rows SLOT_BLOCK apart), copied into obs row by
-    row once the launches are done."""
+    slots into a buffer of SLOT_BLOCK launches (a cache line a row), copied into obs row by
+    row once the launches are done. The slots `cycle_one` leaves unwritten stay NaN from the
+    buffer's start; a launch not done has all its slots set to NaN."""
     scr = np.empty((N_SCRATCH, MAX_N + 1))
     node = np.empty((N_NODE, MAX_N + 1))
-    buf = np.empty((ob.N_OBS, SLOT_BLOCK))
+    buf = np.full((ob.N_OBS, SLOT_BLOCK), math.nan)  # slots no launch writes stay NaN
     for b0 in range(lo, hi, SLOT_BLOCK):
         b1 = min(hi, b0 + SLOT_BLOCK)
         for i in range(b0, b1):
