@@ -295,6 +295,40 @@ def test_turn_per_cycle_near_the_vertical_against_the_fixed_frame():
     assert np.abs(got["theta_max_deg"] - want["theta_max_deg"]).max() < 1e-9
 
 
+#: launches at rest in theta a few hundredths of a degree above -90 deg, whose tilt turns there
+#: slowly (|F'| 2.6e-4 and 3.1e-4): F's rounding, over the distance to the end, put the turn
+#: per cycle 1.4e-6 deg off before the ends' expansions (`cycle._end_model`)
+SLOW_ENDS = [(-89.83024262205952, 0.0, -4.649167240429254, -2.601499699847225),
+             (-89.92408074743075, 0.0, 10.3064745465913, -1.3629759959813708)]
+#: one whose sums F's rounding keeps from converging even so (|F'| 6.6e-5, 2.3e-4 rad from
+#: the vertical): the integrator's
+SLOW_END_REFUSED = (-89.98699611, -0.0, -3.91584767, 7.6426736)
+
+
+def test_a_slowly_turning_end_near_minus_90_deg_against_the_fixed_frame():
+    """Turn per cycle within 5e-7 deg of the fixed frame at rtol 1e-12 (within 1.3e-7 deg of a
+    40-digit quadrature on such launches, `benchmarks/quadrature_vertical.py --below`), theta
+    min within 1e-9 deg; the launch whose sums do not converge goes to the integrator."""
+    from ballsurvey.compose import FALLBACK_H_INIT, FALLBACK_H_MAX, STEP_OBSERVER
+    from ballsurvey.integrate.adaptive import integrate_adaptive
+
+    th, td, cd, pd = np.array(SLOW_ENDS + [SLOW_END_REFUSED]).T
+    y0 = launch_state(th, td, cd, pd, TU)
+    p = np.repeat(P[:, None], len(th), 1)
+    T = 15.0 / TU
+    obs, status = cycle.cycles_by_quadrature(y0, p, T, parallel=False)
+    assert list(status) == [cycle.DONE, cycle.DONE, cycle.UNCONVERGED]
+    y0, p, obs = y0[:, :2], p[:, :2], obs[:, :2]
+    ref = integrate_adaptive(y0, p, T, 1e-12, 1e-15, fixed_frame=True, observer=STEP_OBSERVER,
+                             n_slots=ob.N_OBS, h_init=FALLBACK_H_INIT, h_max=FALLBACK_H_MAX / 10,
+                             parallel=False)
+    res = ref._replace(obs=obs, formulation=np.full_like(ref.formulation, QUADRATURE))
+    got, want = (classify(r, BALL.flat_face_theta_rad) for r in (res, ref))
+    err = np.abs(fold_deg(got["turn_per_cycle_deg"] - want["turn_per_cycle_deg"]))
+    assert err.max() < 5e-7, err
+    assert np.abs(got["theta_min_deg"] - want["theta_min_deg"]).max() < 1e-9
+
+
 def _kernel_invariants(y):
     """(args, E, J, R, f_noise) of fast state y as `cycle.cycle_one` makes them (E less M g a)."""
     from ballsurvey.physics.euler import jellett, kinetic, routh

@@ -29,7 +29,10 @@ cluster at the turning points, where the tilt's approach to the vertical makes t
 sharp feature), N = 16, 32, ..., 512, nested (each level reuses the last's points) until the period
 and the turn of two successive levels agree to `QUAD_RTOL` and `TURN_TOL` (relative; absolute in rad
 for a turn under 1 rad); not converged at 512: left to the integrator, as is a swing whose turning
-points F's rounding leaves uncertain (`END_SPREAD_LIMIT`). Each level's new points take their rates
+points F's rounding leaves uncertain (`END_SPREAD_LIMIT`). At an end where that uncertainty is
+over END_MODEL_SPREAD of the half-range (a tilt that turns slowly there), the points nearest it
+take F from its expansion about the end instead of F as computed (`_end_model`), and the level is
+taken where both sums converge. Each level's new points take their rates
 in a loop free of calls, which runs in SIMD lanes (as does the path's per-point algebra: sines,
 cosines and arctangents in those loops are `trig`'s, plain arithmetic); the numbers are those of one
 point at a time. The period and turn are the last level's; the path is taken at the level before
@@ -100,6 +103,10 @@ QUAD_RTOL, TURN_TOL = 1e-9, 5e-9
 #: `quadrature_ends.py --n 300`: under 1e-11, 3.4e-9 deg; 1e-11-1e-10, 1.5e-8 deg. 1.1 % of the
 #: headline map's launches are past it
 END_SPREAD_LIMIT = 1e-11
+#: an end whose F' leaves its root uncertain by more than this fraction of the half-range h
+#: (f_noise / |F'| / h) takes F from its expansion about the end at the points nearest it
+#: (`_end_model`); the step (a fraction of h) of the difference that gives F'' there
+END_MODEL_SPREAD, END_MODEL_STEP = 1e-13, 1e-7
 #: the vertical less a hair: a tilt whose F is still positive there goes through it
 TILT_LIMIT = 0.5 * math.pi * (1.0 - 1e-13)
 #: first step of the outward search for a turning point, its largest and its least (rad)
@@ -112,8 +119,8 @@ ROOT_NOISE = 16.0
 #: a launch at rest in theta starts its search this far inside (rad)
 START_OFFSET = 1e-9
 #: per-point scratch columns
-_TAU, _CHD, _PHD, _THD, _STH, _CTH = range(6)
-N_SCRATCH = 6
+_TAU, _CHD, _PHD, _THD, _STH, _CTH, _TAUP = range(7)
+N_SCRATCH = 7
 #: per-point rows of the path's scratch (`cycle_one`'s node): s, dt/ds, chidot dt/ds, u, w dt/ds,
 #: |path heading rate|, speed, friction demand, normal force, chi, x, y, two work rows, w
 (_SS, _TAU_C, _CHD_TAU, _U, _W_TAU, _PSID, _SPEED, _FRIC, _NORM, _CHI, _X, _Y, _FX, _FY,
@@ -123,8 +130,9 @@ N_NODE = 15
 #: free until the cumulative integrals
 _IN_CHD, _IN_PHD, _IN_THD, _IN_STH, _IN_CTH = _CHI, _X, _Y, _FX, _FY
 #: node's rows as the level stage's work rows: sin, cos, h cos s, chidot, phidot, F, thetadot,
-#: dt/ds of the level's new points
-_WS, _WC, _WH, _WCHD, _WPHD, _WF, _WTHD, _WTAU = range(8)
+#: dt/ds of the level's new points, their distances from the ends, theta - lo and hi - theta, and
+#: dt/ds from F as computed (`_end_model`)
+_WS, _WC, _WH, _WCHD, _WPHD, _WF, _WTHD, _WTAU, _WXL, _WXH, _WTAUP = range(11)
 
 
 @cache
@@ -332,6 +340,30 @@ def _end_tau(th, h, inv):
     return math.sqrt(h / abs(thdd)), chd, phd, sth, cth
 
 
+@jit
+def _end_model(e, d, h, a, f_noise, inv):
+    """(b, reach) of F's expansion F = a x + b x^2 about the end e, x = d (theta - e) >= 0 the
+    distance inward (a = |F'| there), used at the points nearer the end than reach (0: none).
+
+    F is a difference of terms of the energy's size; at a distance x from its root its
+    rounding, about 2 units of it (f_noise / ROOT_NOISE * 2), is that over (a x) of itself, and
+    a root that turns slowly (near -90 deg an end at a = 1e-4) leaves that at 4e-4 for the
+    points of N = 512 nearest the end, all of one sign: the levels' sums drift from the exact
+    ones as N^2 (turn per cycle 1.4e-6 deg off at N = 128, 2.7e-5 deg at 512), where the exact
+    integrand at the same points converges to 4e-13 deg by N = 128. The expansion's error grows
+    as (x / l)^2, l = a / |b| or, nearer, the distance to the vertical (F has terms in 1 /
+    cos^2); it is a tenth of the rounding's at reach = (0.1 rounding / a l^2)^(1/3), at most l /
+    100. b = F'' / 2 is the difference of F' over END_MODEL_STEP h inward. No expansion (reach
+    0) where F bends within 1e3 steps."""
+    step = END_MODEL_STEP * h
+    fd = _F_dF(e + d * step, inv)[1]
+    b = 0.5 * (d * fd - a) / step
+    xs = min(a / abs(b) if b != 0.0 else h, 0.5 * math.pi - abs(e))
+    if not xs > 1e3 * step:
+        return 0.0, 0.0
+    return b, min((0.1 * f_noise / ROOT_NOISE * 2.0 / a * xs * xs) ** (1.0 / 3.0), 0.01 * xs)
+
+
 @jit_inline
 def _extremum(node, f, n, sign):
     """Row f of node: its extremum over points 0..n (sign +1: largest, -1: least), refined on
@@ -435,6 +467,7 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
     s_m, c_m = math.sin(m), math.cos(m)  # theta = m + h sin s: `sincos_shift`
     # --- nested Clenshaw-Curtis levels until period and turn converge --------------------------
     per_prev, turn_prev = math.nan, math.nan
+    per_pp, turn_pp = math.nan, math.nan  # the last level's sums with F as computed
     level = -1
     for L in range(LEVELS):
         n = FIRST_N << L
@@ -445,11 +478,22 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
                 tau, chd, phd, sth, cth = _end_tau(th, h, inv)
                 scr[_TAU, k], scr[_CHD, k], scr[_PHD, k] = tau, chd, phd
                 scr[_THD, k], scr[_STH, k], scr[_CTH, k] = 0.0, sth, cth
+                scr[_TAUP, k] = tau
             # how far F's rounding leaves a turning point, f_noise / |F'| (F' = 2 thetaddot =
             # 2 h / tau^2 there), against the half-range h: `END_SPREAD_LIMIT`
             tau_end = max(scr[_TAU, 0], scr[_TAU, MAX_N])
             if not f_noise * tau_end * tau_end / (2.0 * h * h) <= END_SPREAD_LIMIT:
                 return UNCONVERGED
+            # an end whose root F's rounding leaves uncertain takes F from its expansion at
+            # the points nearest it (`_end_model`); |F'| = 2 h / tau^2 there
+            a_lo = 2.0 * h / (scr[_TAU, 0] * scr[_TAU, 0])
+            a_hi = 2.0 * h / (scr[_TAU, MAX_N] * scr[_TAU, MAX_N])
+            b_lo = b_hi = reach_lo = reach_hi = 0.0
+            if f_noise / (a_lo * h) > END_MODEL_SPREAD:
+                b_lo, reach_lo = _end_model(lo, 1.0, h, a_lo, f_noise, inv)
+            if f_noise / (a_hi * h) > END_MODEL_SPREAD:
+                b_hi, reach_hi = _end_model(hi, -1.0, h, a_hi, f_noise, inv)
+            modelled = reach_lo > 0.0 or reach_hi > 0.0
             first, step, count = stride, stride, n - 1
         else:  # the points between the last level's
             first, step, count = stride, 2 * stride, n // 2
@@ -462,13 +506,31 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
             k = first + p * step
             node[_WS, p] = h * sin_s[k]
             node[_WH, p] = h * cos_s[k]
-        for p in range(uintp(count)):
-            sth, cth = sincos_shift(s_m, c_m, node[_WS, p])
-            node[_WS, p], node[_WC, p] = sth, cth
-            chd, phd, f = _rates_at(sth, cth, inv)
-            thd = math.sqrt(f)
-            node[_WCHD, p], node[_WPHD, p], node[_WF, p] = chd, phd, f
-            node[_WTHD, p], node[_WTAU, p] = thd, node[_WH, p] / thd
+        if modelled:
+            for p in range(uintp(count)):
+                k = first + p * step
+                # theta - lo = h (1 + sin s) = h cos^2 s / (1 - sin s): no cancellation
+                node[_WXL, p] = h * cos_s[k] * cos_s[k] / (1.0 - sin_s[k])
+                node[_WXH, p] = h * cos_s[k] * cos_s[k] / (1.0 + sin_s[k])
+            for p in range(uintp(count)):
+                sth, cth = sincos_shift(s_m, c_m, node[_WS, p])
+                node[_WS, p], node[_WC, p] = sth, cth
+                chd, phd, f = _rates_at(sth, cth, inv)
+                xl, xh = node[_WXL, p], node[_WXH, p]
+                fm = (a_lo + b_lo * xl) * xl if xl < reach_lo else f
+                fm = (a_hi + b_hi * xh) * xh if xh < reach_hi else fm
+                thd = math.sqrt(fm)
+                node[_WCHD, p], node[_WPHD, p], node[_WF, p] = chd, phd, f
+                node[_WTHD, p], node[_WTAU, p] = thd, node[_WH, p] / thd
+                node[_WTAUP, p] = node[_WH, p] / math.sqrt(f)
+        else:
+            for p in range(uintp(count)):
+                sth, cth = sincos_shift(s_m, c_m, node[_WS, p])
+                node[_WS, p], node[_WC, p] = sth, cth
+                chd, phd, f = _rates_at(sth, cth, inv)
+                thd = math.sqrt(f)
+                node[_WCHD, p], node[_WPHD, p], node[_WF, p] = chd, phd, f
+                node[_WTHD, p], node[_WTAU, p] = thd, node[_WH, p] / thd
         for p in range(uintp(count)):
             if not node[_WF, p] > 0.0:
                 return UNCONVERGED
@@ -476,17 +538,36 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
             scr[_TAU, k], scr[_CHD, k] = node[_WTAU, p], node[_WCHD, p]
             scr[_PHD, k], scr[_THD, k] = node[_WPHD, p], node[_WTHD, p]
             scr[_STH, k], scr[_CTH, k] = node[_WS, p], node[_WC, p]
+        if modelled:
+            for p in range(uintp(count)):
+                scr[_TAUP, first + p * step] = node[_WTAUP, p]
+        # the sums with the ends' expansions (the result), and with F as computed: the level is
+        # taken when the latter converge, so that the expansions never let through a launch
+        # whose sums F's rounding keeps from converging (they drift there as N^2, and where the
+        # expansions do not hold them, near -90 deg with F' at 1e-4, the result can be off by
+        # 1e-6 deg while the expansions' sums agree)
         per, turn = 0.0, 0.0
         for j in range(uintp(n + 1)):
             k = j * uintp(stride)
             wt = weights[L, k] * scr[_TAU, k]
             per += wt
             turn += wt * scr[_CHD, k]
-        if (L > 0 and abs(per - per_prev) <= QUAD_RTOL * per
+        per_p, turn_p = per, turn
+        if modelled:
+            per_p, turn_p = 0.0, 0.0
+            for j in range(uintp(n + 1)):
+                k = j * uintp(stride)
+                wt = weights[L, k] * scr[_TAUP, k]
+                per_p += wt
+                turn_p += wt * scr[_CHD, k]
+        if (L > 0 and abs(per_p - per_pp) <= QUAD_RTOL * per_p
+                and abs(turn_p - turn_pp) <= TURN_TOL * max(1.0, abs(turn_p))
+                and abs(per - per_prev) <= QUAD_RTOL * per
                 and abs(turn - turn_prev) <= TURN_TOL * max(1.0, abs(turn))):
             level = L
             break
         per_prev, turn_prev = per, turn
+        per_pp, turn_pp = per_p, turn_p
     if level < 0 or not (math.isfinite(per) and math.isfinite(turn)):
         return UNCONVERGED
     # --- the path at the level before (its period and turn agree with this one's to
