@@ -365,6 +365,27 @@ def _end_model(e, d, h, a, f_noise, inv):
 
 
 @jit_inline
+def _level_sums(weights, L, n, stride, scr, tau_row):
+    """(half period, half turn) of level L (n intervals, every stride-th point of the finest)
+    from dt/ds in scr's row tau_row and chidot in row _CHD."""
+    per, turn = 0.0, 0.0
+    r = uintp(tau_row)
+    for j in range(uintp(n + 1)):
+        k = j * uintp(stride)
+        wt = weights[L, k] * scr[r, k]
+        per += wt
+        turn += wt * scr[_CHD, k]
+    return per, turn
+
+
+@jit
+def _agree(per, turn, per0, turn0):
+    """Two levels' period and turn agree to QUAD_RTOL and TURN_TOL."""
+    return (abs(per - per0) <= QUAD_RTOL * per
+            and abs(turn - turn0) <= TURN_TOL * max(1.0, abs(turn)))
+
+
+@jit_inline
 def _extremum(node, f, n, sign):
     """Row f of node: its extremum over points 0..n (sign +1: largest, -1: least), refined on
     the parabola through the best point and its two neighbours (their s in row _SS); at an end
@@ -546,24 +567,12 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
         # whose sums F's rounding keeps from converging (they drift there as N^2, and where the
         # expansions do not hold them, near -90 deg with F' at 1e-4, the result can be off by
         # 1e-6 deg while the expansions' sums agree)
-        per, turn = 0.0, 0.0
-        for j in range(uintp(n + 1)):
-            k = j * uintp(stride)
-            wt = weights[L, k] * scr[_TAU, k]
-            per += wt
-            turn += wt * scr[_CHD, k]
+        per, turn = _level_sums(weights, L, n, stride, scr, _TAU)
         per_p, turn_p = per, turn
         if modelled:
-            per_p, turn_p = 0.0, 0.0
-            for j in range(uintp(n + 1)):
-                k = j * uintp(stride)
-                wt = weights[L, k] * scr[_TAUP, k]
-                per_p += wt
-                turn_p += wt * scr[_CHD, k]
-        if (L > 0 and abs(per_p - per_pp) <= QUAD_RTOL * per_p
-                and abs(turn_p - turn_pp) <= TURN_TOL * max(1.0, abs(turn_p))
-                and abs(per - per_prev) <= QUAD_RTOL * per
-                and abs(turn - turn_prev) <= TURN_TOL * max(1.0, abs(turn))):
+            per_p, turn_p = _level_sums(weights, L, n, stride, scr, _TAUP)
+        if (L > 0 and _agree(per_p, turn_p, per_pp, turn_pp)
+                and _agree(per, turn, per_prev, turn_prev)):
             level = L
             break
         per_prev, turn_prev = per, turn
