@@ -130,9 +130,8 @@ N_NODE = 15
 #: free until the cumulative integrals
 _IN_CHD, _IN_PHD, _IN_THD, _IN_STH, _IN_CTH = _CHI, _X, _Y, _FX, _FY
 #: node's rows as the level stage's work rows: sin, cos, h cos s, chidot, phidot, F, thetadot,
-#: dt/ds of the level's new points, their distances from the ends, theta - lo and hi - theta, and
-#: dt/ds from F as computed (`_end_model`)
-_WS, _WC, _WH, _WCHD, _WPHD, _WF, _WTHD, _WTAU, _WXL, _WXH, _WTAUP = range(11)
+#: dt/ds of the level's new points, and their dt/ds from F as computed (`_end_model`)
+_WS, _WC, _WH, _WCHD, _WPHD, _WF, _WTHD, _WTAU, _WTAUP = range(9)
 
 
 @cache
@@ -527,30 +526,23 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
             k = first + p * step
             node[_WS, p] = h * sin_s[k]
             node[_WH, p] = h * cos_s[k]
-        if modelled:
+        for p in range(uintp(count)):
+            sth, cth = sincos_shift(s_m, c_m, node[_WS, p])
+            node[_WS, p], node[_WC, p] = sth, cth
+            chd, phd, f = _rates_at(sth, cth, inv)
+            thd = math.sqrt(f)
+            node[_WCHD, p], node[_WPHD, p], node[_WF, p] = chd, phd, f
+            node[_WTHD, p], node[_WTAU, p] = thd, node[_WH, p] / thd
+        if modelled:  # F from the ends' expansions at the points within their reach
             for p in range(uintp(count)):
                 k = first + p * step
                 # theta - lo = h (1 + sin s) = h cos^2 s / (1 - sin s): no cancellation
-                node[_WXL, p] = h * cos_s[k] * cos_s[k] / (1.0 - sin_s[k])
-                node[_WXH, p] = h * cos_s[k] * cos_s[k] / (1.0 + sin_s[k])
-            for p in range(uintp(count)):
-                sth, cth = sincos_shift(s_m, c_m, node[_WS, p])
-                node[_WS, p], node[_WC, p] = sth, cth
-                chd, phd, f = _rates_at(sth, cth, inv)
-                xl, xh = node[_WXL, p], node[_WXH, p]
-                fm = (a_lo + b_lo * xl) * xl if xl < reach_lo else f
+                xl = h * cos_s[k] * cos_s[k] / (1.0 - sin_s[k])
+                xh = h * cos_s[k] * cos_s[k] / (1.0 + sin_s[k])
+                fm = (a_lo + b_lo * xl) * xl if xl < reach_lo else node[_WF, p]
                 fm = (a_hi + b_hi * xh) * xh if xh < reach_hi else fm
                 thd = math.sqrt(fm)
-                node[_WCHD, p], node[_WPHD, p], node[_WF, p] = chd, phd, f
-                node[_WTHD, p], node[_WTAU, p] = thd, node[_WH, p] / thd
-                node[_WTAUP, p] = node[_WH, p] / math.sqrt(f)
-        else:
-            for p in range(uintp(count)):
-                sth, cth = sincos_shift(s_m, c_m, node[_WS, p])
-                node[_WS, p], node[_WC, p] = sth, cth
-                chd, phd, f = _rates_at(sth, cth, inv)
-                thd = math.sqrt(f)
-                node[_WCHD, p], node[_WPHD, p], node[_WF, p] = chd, phd, f
+                node[_WTAUP, p] = node[_WTAU, p]
                 node[_WTHD, p], node[_WTAU, p] = thd, node[_WH, p] / thd
         for p in range(uintp(count)):
             if not node[_WF, p] > 0.0:
