@@ -468,7 +468,8 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
         start = th0 + d * START_OFFSET
         if not _F(start, inv) > 0.0:
             return UNCONVERGED
-        # F vanishes at th0 with slope 2 thdd0: q = F / |theta - th0| starts at 2 |thdd0|
+        # F vanishes at th0 with slope 2 thdd0: q = F cos^2 / |theta - th0| starts at
+        # 2 |thdd0| cos^2 th0
         other = _turning_point(start, d, th0, 2.0 * abs(thdd0) * c0 * c0, f_noise, inv)
         if not math.isfinite(other):
             return VERTICAL
@@ -499,19 +500,19 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
                 scr[_TAU, k], scr[_CHD, k], scr[_PHD, k] = tau, chd, phd
                 scr[_THD, k], scr[_STH, k], scr[_CTH, k] = 0.0, sth, cth
                 scr[_TAUP, k] = tau
-            # how far F's rounding leaves a turning point, f_noise / |F'| (F' = 2 thetaddot =
-            # 2 h / tau^2 there), against the half-range h: `END_SPREAD_LIMIT`
-            tau_end = max(scr[_TAU, 0], scr[_TAU, MAX_N])
-            if not f_noise * tau_end * tau_end / (2.0 * h * h) <= END_SPREAD_LIMIT:
-                return UNCONVERGED
-            # an end whose root F's rounding leaves uncertain takes F from its expansion at
-            # the points nearest it (`_end_model`); |F'| = 2 h / tau^2 there
+            # how far F's rounding leaves each turning point, f_noise / |F'| (|F'| = 2
+            # |thetaddot| = 2 h / tau^2 there), against the half-range h: past
+            # `END_SPREAD_LIMIT` the integrator's; past END_MODEL_SPREAD, F from its expansion
+            # at the points nearest that end (`_end_model`)
             a_lo = 2.0 * h / (scr[_TAU, 0] * scr[_TAU, 0])
             a_hi = 2.0 * h / (scr[_TAU, MAX_N] * scr[_TAU, MAX_N])
+            spread_lo, spread_hi = f_noise / (a_lo * h), f_noise / (a_hi * h)
+            if not max(spread_lo, spread_hi) <= END_SPREAD_LIMIT:
+                return UNCONVERGED
             b_lo = b_hi = reach_lo = reach_hi = 0.0
-            if f_noise / (a_lo * h) > END_MODEL_SPREAD:
+            if spread_lo > END_MODEL_SPREAD:
                 b_lo, reach_lo = _end_model(lo, 1.0, h, a_lo, f_noise, inv)
-            if f_noise / (a_hi * h) > END_MODEL_SPREAD:
+            if spread_hi > END_MODEL_SPREAD:
                 b_hi, reach_hi = _end_model(hi, -1.0, h, a_hi, f_noise, inv)
             modelled = reach_lo > 0.0 or reach_hi > 0.0
             first, step, count = stride, stride, n - 1
@@ -723,12 +724,13 @@ SLOT_BLOCK = 8
 def _block(y0, params, T, stop_after, steady_tol, tabs_s, sin_s, cos_s, weights, qm, offsets,
            lo, hi, obs, status):
     """Launches lo..hi into obs[:, lo:hi] and status[lo:hi]. Each launch's slots are a column of
-    obs, whose rows lie a chunk's length apart: at a power-of-two length (the headline map's 8192
-    launches a chunk) the column's N_OBS cache lines all fall in one set of the caches, which
-    holds a dozen, and writing them cost the kernel half its time again. So a launch writes its
-    slots into a buffer of SLOT_BLOCK launches (a cache line a row), copied into obs row by
-    row once the launches are done. The slots `cycle_one` leaves unwritten stay NaN from the
-    buffer's start; a launch not done has all its slots set to NaN."""
+    obs, whose rows lie the call's number of launches apart: at a power of two (a call of 8192
+    launches) the column's N_OBS cache lines all fall in one set of the caches, which holds a
+    dozen, and writing them cost the kernel half its time again (2.66 against 1.60 us a
+    launch). So a launch writes its slots into a buffer of SLOT_BLOCK launches (a cache line a
+    row), copied into obs row by row once the launches are done. The slots `cycle_one` leaves
+    unwritten stay NaN from the buffer's start; a launch not done has all its slots set to
+    NaN."""
     scr = np.empty((N_SCRATCH, MAX_N + 1))
     node = np.empty((N_NODE, MAX_N + 1))
     buf = np.full((ob.N_OBS, SLOT_BLOCK), math.nan)  # slots no launch writes stay NaN
@@ -754,8 +756,9 @@ def _run_parallel(y0, params, T, stop_after, steady_tol, s, sin_s, cos_s, weight
     """Blocks of `block` successive launches shared out among `threads` threads (numba's number,
     passed in: read here it would keep the function from numba's cache) as they come free
     (an atomic counter): numba's prange would give each thread an equal, fixed share, and a
-    sweep's part writer, running beside the kernel, slows one of them (a tenth to a third of
-    the call's time). Which thread does a block never changes its launches' results."""
+    sweep's part writer, running beside the kernel, slows one of them while the other waits
+    (the headline sweep: 1.40-1.51 s so, 1.35-1.40 s shared out). Which thread does a block
+    never changes its launches' results."""
     n = y0.shape[1]
     nblocks = (n + block - 1) // block
     counter = np.zeros(1, dtype=np.int64)
