@@ -3,7 +3,7 @@ swings up to within a fraction of a degree of +90 deg, against two references, w
 revision's kernel beside today's when --against is given.
 
     python benchmarks/quadrature_vertical.py [--n 300] [--seed 0] [--lo 89.5] [--hi 89.99]
-                                             [--circles | --below] [--against REV]
+                                             [--circles | --below] [--varied] [--against REV]
 
 Launches (the paper's ball) are drawn near the vertical: theta0 85-89.99 deg, half of them with
 thetadot0 in +-0.5 rad/s, chidot0 +-13 and phidot0 +-10 rad/s (swings of about 1 to 6 deg); or,
@@ -20,7 +20,8 @@ Printed per bin of theta max: the launches, the largest |turn per cycle| error o
 against mp (and how many over 1e-6 deg) and against fixed, and the largest theta max error
 against mp; then how far the two references are apart. --below does the same near -90 deg: the
 launches' theta min in [-hi, -lo] deg, each run 15 s (the fixed frame's turn needs two cycles;
-near -90 deg it is the less reliable of the two references).
+near -90 deg it is the less reliable of the two references). --varied: each launch with its own
+ball, non-dimensional c in 0.05-0.5 and A, B in 0.3-0.7 (the paper's: 0.05, 0.42, 0.42 about).
 """
 from __future__ import annotations
 
@@ -50,15 +51,21 @@ REL = "src/ballsurvey/classify/cycle.py"
 
 
 def draw(n: int, lo: float, hi: float, rng, circles: bool = False,
-         below: bool = False) -> np.ndarray:
-    """(4, n) launches (deg, rad/s) today's kernel does, theta max in [lo, hi] deg (below: -theta
-    min, from theta0 -89.99 to -80 deg, the same rates). circles: on
-    a steady circle (tilt 88-89.99 deg, precession +-(1-10) sqrt(g/a)) with a tilt rate of
-    1e-4 to 0.3 rad/s, the smallest swings the kernel does near the vertical."""
-    c, A, B = P
-    rows = np.empty((4, 0))
+         below: bool = False, varied: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """((4, n) launches (deg, rad/s), (3, n) non-dimensional ball parameters) today's kernel
+    does, theta max in [lo, hi] deg (below: -theta min, from theta0 -89.99 to -80 deg, the same
+    rates). circles: on a steady circle (tilt 88-89.99 deg, precession +-(1-10) sqrt(g/a)) with
+    a tilt rate of 1e-4 to 0.3 rad/s, the smallest swings the kernel does near the vertical.
+    varied: each launch's ball drawn (c 0.05-0.5, A and B 0.3-0.7); else the paper's."""
+    rows, pars = np.empty((4, 0)), np.empty((3, 0))
     while rows.shape[1] < n:
         m = 200_000
+        if varied:
+            par = np.array([rng.uniform(0.05, 0.5, m), rng.uniform(0.3, 0.7, m),
+                            rng.uniform(0.3, 0.7, m)])
+        else:
+            par = np.repeat(P[:, None], m, 1)
+        c, A, B = par
         if circles:
             th_c = rng.uniform(88.0, 89.99, m)
             om = rng.choice([-1.0, 1.0], m) * rng.uniform(1.0, 10.0, m)
@@ -71,20 +78,20 @@ def draw(n: int, lo: float, hi: float, rng, circles: bool = False,
             cand = np.array([tilt,
                              rng.uniform(-0.5, 0.5, m) * (rng.random(m) < 0.5),
                              rng.uniform(-13.0, 13.0, m), rng.uniform(-10.0, 10.0, m)])
-        obs, st = cycle.cycles_by_quadrature(launch_state(*cand, TU),
-                                             np.repeat(P[:, None], m, 1), 3.0 / TU)
+        obs, st = cycle.cycles_by_quadrature(launch_state(*cand, TU), par, 3.0 / TU)
         end = -np.degrees(obs[ob.O_TH_MIN]) if below else np.degrees(obs[ob.O_TH_MAX])
         keep = (st == cycle.DONE) & (end >= lo) & (end <= hi)
         rows = np.concatenate([rows, cand[:, keep]], axis=1)
-    return rows[:, :n]
+        pars = np.concatenate([pars, par[:, keep]], axis=1)
+    return rows[:, :n], pars[:, :n]
 
 
-def mp_cycle(th0, thd0, chd0, phd0, guess_lo, guess_hi):
+def mp_cycle(th0, thd0, chd0, phd0, guess_lo, guess_hi, params=P):
     """(turn per cycle rad, theta_min, theta_max rad, the quadrature's error estimate) at 40
     digits, of the non-dimensional launch, from the definitions of the energy, Jellett's and
     Routh's integrals (docs/physics.md section 6), near the kernel's turning points (guesses: the
     roots are bracketed around them)."""
-    c, A, B = (mp.mpf(float(v)) for v in P)
+    c, A, B = (mp.mpf(float(v)) for v in params)
     th0, thd0, chd0, phd0 = (mp.mpf(float(v)) for v in (th0, thd0, chd0, phd0))
 
     def kinetic(s, co, thd, chd, phd):
@@ -146,16 +153,17 @@ def main() -> None:
                     help="launches on steady circles near the vertical, nudged in tilt rate")
     ap.add_argument("--below", action="store_true",
                     help="near -90 deg: --lo and --hi bound -theta_min, theta0 -89.99 to -80 deg")
+    ap.add_argument("--varied", action="store_true",
+                    help="each launch with its own ball: c 0.05-0.5, A and B 0.3-0.7")
     args = ap.parse_args()
     if args.n < 1 or not args.lo < args.hi < 90.0:
         ap.error("need --n >= 1 and --lo < --hi < 90")
     mp.mp.dps = 40
     if args.below and args.circles:
         ap.error("--below draws no circles")
-    rows = draw(args.n, args.lo, args.hi, np.random.default_rng(args.seed), args.circles,
-                args.below)
+    rows, p = draw(args.n, args.lo, args.hi, np.random.default_rng(args.seed), args.circles,
+                   args.below, args.varied)
     y0 = launch_state(*rows, TU)
-    p = np.repeat(P[:, None], y0.shape[1], 1)
     T = (15.0 if args.below else 3.0) / TU  # (swings from -90 deg run long)
     kernels = {"today": cycle}
     if args.against:
@@ -175,13 +183,14 @@ def main() -> None:
     mp_turn, mp_tmax, mp_err = (np.empty(y0.shape[1]) for _ in range(3))
     for i in range(y0.shape[1]):
         turn, lo, hi, err = mp_cycle(*y0[[2, 5, 6, 7], i], obs_today[ob.O_TH_MIN, i],
-                                 obs_today[ob.O_TH_MAX, i])
+                                 obs_today[ob.O_TH_MAX, i], p[:, i])
         mp_turn[i] = float(fold_deg(np.array([float(mp.degrees(turn))]))[0])
         mp_tmax[i] = -float(mp.degrees(lo)) if args.below else float(mp.degrees(hi))
         mp_err[i] = float(mp.degrees(2 * err))
     swing = np.degrees(obs_today[ob.O_TH_MAX] - obs_today[ob.O_TH_MIN])
     name_end = "-theta min" if args.below else "theta max"
-    print(f"{y0.shape[1]} launches near the vertical (seed {args.seed}), {name_end} "
+    ball = "balls drawn per launch" if args.varied else "the paper's ball"
+    print(f"{y0.shape[1]} launches near the vertical ({ball}, seed {args.seed}), {name_end} "
           f"{args.lo}-{args.hi} deg, swings {swing.min():.2f}-{swing.max():.2f} deg; errors in "
           "deg against mp (40 digits) and the fixed frame (rtol 1e-12)")
     edges = [args.lo] + [e for e in (89.8, 89.9, 89.95) if args.lo < e < args.hi] + [args.hi]
