@@ -30,12 +30,13 @@ sharp feature), N = 16, 32, ..., 512, nested (each level reuses the last's point
 and the turn of two successive levels agree to `QUAD_RTOL` and `TURN_TOL` (relative; absolute in rad
 for a turn under 1 rad); not converged at 512: left to the integrator, as is a swing whose turning
 points F's rounding leaves uncertain (`END_SPREAD_LIMIT`). At an end where that uncertainty is
-over END_MODEL_SPREAD of the half-range (a tilt that turns slowly there), the points nearest it
-take F from its expansion about the end instead of F as computed (`_end_model`), and the level is
-taken where both sums converge. Each level's new points take their rates
-in a loop free of calls, which runs in SIMD lanes (as does the path's per-point algebra: sines,
-cosines and arctangents in those loops are `trig`'s, plain arithmetic); the numbers are those of one
-point at a time. The period and turn are the last level's; the path is taken at the level before
+over END_DIFF_SPREAD of the half-range (a tilt that turns slowly there), the points nearest it
+take F from its difference from the energy at the end, free of cancellation (`_F_about`),
+instead of F as computed, a difference of terms of the energy's size. Each level's new points
+take their rates in a loop free of calls, which runs in SIMD lanes (as does the path's per-point
+algebra: sines, cosines and arctangents in those loops are `trig`'s, plain arithmetic); the
+numbers are those of one point at a
+time. The period and turn are the last level's; the path is taken at the level before
 (its period and turn agree with the last's to those tolerances): there the cumulative integrals
 (Chebyshev integration matrix) give, at every point, the time, the heading chi (from chidot) and G's
 position (from its velocity, in the heading frame turned by chi).
@@ -104,9 +105,9 @@ QUAD_RTOL, TURN_TOL = 1e-9, 5e-9
 #: headline map's launches are past it
 END_SPREAD_LIMIT = 1e-11
 #: an end whose F' leaves its root uncertain by more than this fraction of the half-range h
-#: (f_noise / |F'| / h) takes F from its expansion about the end at the points nearest it
-#: (`_end_model`); the step (a fraction of h) of the difference that gives F'' there
-END_MODEL_SPREAD, END_MODEL_STEP = 1e-13, 1e-7
+#: (f_noise / |F'| / h) takes F from its difference about the end (`_F_about`) at the points
+#: where F's rounding is over END_DIFF_RTOL of it (`_diff_reach`)
+END_DIFF_SPREAD, END_DIFF_RTOL = 1e-13, 1e-12
 #: the vertical less a hair: a tilt whose F is still positive there goes through it
 TILT_LIMIT = 0.5 * math.pi * (1.0 - 1e-13)
 #: first step of the outward search for a turning point, its largest and its least (rad)
@@ -119,8 +120,8 @@ ROOT_NOISE = 16.0
 #: a launch at rest in theta starts its search this far inside (rad)
 START_OFFSET = 1e-9
 #: per-point scratch columns
-_TAU, _CHD, _PHD, _THD, _STH, _CTH, _TAUP = range(7)
-N_SCRATCH = 7
+_TAU, _CHD, _PHD, _THD, _STH, _CTH = range(6)
+N_SCRATCH = 6
 #: per-point rows of the path's scratch (`cycle_one`'s node): s, dt/ds, chidot dt/ds, u, w dt/ds,
 #: |path heading rate|, speed, friction demand, normal force, chi, x, y, two work rows, w
 (_SS, _TAU_C, _CHD_TAU, _U, _W_TAU, _PSID, _SPEED, _FRIC, _NORM, _CHI, _X, _Y, _FX, _FY,
@@ -131,7 +132,7 @@ N_NODE = 15
 _IN_CHD, _IN_PHD, _IN_THD, _IN_STH, _IN_CTH = _CHI, _X, _Y, _FX, _FY
 #: node's rows as the level stage's work rows: sin, cos, h cos s, chidot, phidot, F, thetadot,
 #: dt/ds of the level's new points, and their dt/ds from F as computed (`_end_model`)
-_WS, _WC, _WH, _WCHD, _WPHD, _WF, _WTHD, _WTAU, _WTAUP = range(9)
+_WS, _WC, _WH, _WCHD, _WPHD, _WF, _WTHD, _WTAU = range(8)
 
 
 @cache
@@ -340,38 +341,77 @@ def _end_tau(th, h, inv):
 
 
 @jit
-def _end_model(e, d, h, a, f_noise, inv):
-    """(b, reach) of F's expansion F = a x + b x^2 about the end e, x = d (theta - e) >= 0 the
-    distance inward (a = |F'| there), used at the points nearer the end than reach (0: none).
+def _end_terms(th, inv):
+    """(sin, cos, q, w, chidot cos, (phidot - c chidot) cos) at the end th: the terms of the
+    energy at rest in theta (`_rates_at`) that `_F_about` takes differences of."""
+    E, R, c, A, B, _, _, _, _ = inv
+    sth, cth = math.sin(th), math.cos(th)
+    chd = _rates_at(sth, cth, inv)[0]
+    sq = math.sqrt(A * B + A * cth * cth + B * (sth - c) ** 2)
+    w = R / sq
+    chc = chd * cth
+    return sth, cth, sq, w, chc, w * cth + chc * (sth - c)
 
-    F is a difference of terms of the energy's size; at a distance x from its root its
-    rounding, about 2 units of it (f_noise / ROOT_NOISE * 2), is that over (a x) of itself, and
-    a root that turns slowly (near -90 deg an end at a = 1e-4) leaves that at 4e-4 for the
-    points of N = 512 nearest the end, all of one sign: the levels' sums drift from the exact
-    ones as N^2 (turn per cycle 1.4e-6 deg off at N = 128, 2.7e-5 deg at 512), where the exact
-    integrand at the same points converges to 4e-13 deg by N = 128. The expansion's error grows
-    as (x / l)^2, l = a / |b| or, nearer, the distance to the vertical (F has terms in 1 /
-    cos^2); it is a tenth of the rounding's at reach = (0.1 rounding / a l^2)^(1/3), at most l /
-    100. b = F'' / 2 is the difference of F' over END_MODEL_STEP h inward. No expansion (reach
-    0) where F bends within 1e3 steps."""
-    step = END_MODEL_STEP * h
-    fd = _F_dF(e + d * step, inv)[1]
-    b = 0.5 * (d * fd - a) / step
-    xs = min(a / abs(b) if b != 0.0 else h, 0.5 * math.pi - abs(e))
-    if not xs > 1e3 * step:
-        return 0.0, 0.0
-    return b, min((0.1 * f_noise / ROOT_NOISE * 2.0 / a * xs * xs) ** (1.0 / 3.0), 0.01 * xs)
+
+@jit
+def _F_about(sth, cth, chd, dx, end, inv):
+    """F at the tilt end + dx (sine and cosine sth, cth; chidot chd there) from its difference
+    from the end's energy at rest in theta: F = 2 (u(end) - u(theta)) / (A + 1 - 2 c sin + c^2)
+    with u - u(end) summed from the differences of its terms, each a product of differences
+    computed without cancellation (sin(end + dx) - sin(end) = cos(end) sin dx - 2 sin(end)
+    sin^2(dx/2), and so on; `end` from `_end_terms`). F as `_rates_at` computes it is E - u,
+    two terms of the energy's size: near an end where F turns slowly (|F'| small) that
+    difference is off by its rounding, all points the same way, and the turn per cycle by up
+    to 2e-6 deg near -90 deg. This one is off by rounding relative to the terms' differences,
+    of order |dx| times their slopes: relatively, the same at every distance from the end.
+    (The energy it takes is u(end), which differs from the launch's by the rounding that
+    leaves the end uncertain: the same launch, perturbed in the last bits.)"""
+    _, R, c, A, B, _, _, _, _ = inv
+    s_e, c_e, sq_e, w_e, chc_e, fwd_e = end
+    sh, ch = sincos(0.5 * dx)
+    sx, vx = 2.0 * sh * ch, 2.0 * sh * sh  # sin dx, 1 - cos dx
+    ds = c_e * sx - s_e * vx
+    dc = -s_e * sx - c_e * vx
+    sq = math.sqrt(A * B + A * cth * cth + B * (sth - c) ** 2)
+    w = R / sq
+    chc = chd * cth
+    fwd = w * cth + chc * (sth - c)
+    dsq = (A * (cth + c_e) * dc + B * (sth + s_e - 2.0 * c) * ds) / (sq + sq_e)
+    dw = -w * dsq / sq_e
+    # chidot cos = (B w (sin - c) - J) / (A cos): the numerator's difference, then the ratio's
+    dchc = (B * (dw * (sth - c) + w_e * ds) / A - chc_e * dc) / cth
+    dfwd = dw * cth + w_e * dc + dchc * (sth - c) + chc_e * ds
+    du = 0.5 * (A * dchc * (chc + chc_e) + B * dw * (w + w_e) + dfwd * (fwd + fwd_e)) - c * ds
+    return -2.0 * du / (A + 1.0 - 2.0 * c * sth + c * c)
+
+
+@jit
+def _diff_reach(spread, f_noise, a, h):
+    """How far from an end (rad) its points take F from `_F_about`: where F's rounding, about
+    2 eps E / (a x) of it at a distance x (f_noise / ROOT_NOISE * 2 / (a x)), is over
+    END_DIFF_RTOL; at most the half-range h (the half nearer the end). 0 for an end whose root
+    F's rounding leaves certain to END_DIFF_SPREAD of h."""
+    if not spread > END_DIFF_SPREAD:
+        return 0.0
+    return min(h, f_noise / ROOT_NOISE * 2.0 / (END_DIFF_RTOL * a))
 
 
 @jit_inline
-def _level_sums(weights, L, n, stride, scr, tau_row):
+def _set_about(node, p, dx, end, inv):
+    """Level point p's F, thetadot and dt/ds (node's work rows) from `_F_about` the end."""
+    f = _F_about(node[_WS, p], node[_WC, p], node[_WCHD, p], dx, end, inv)
+    thd = math.sqrt(f)
+    node[_WF, p], node[_WTHD, p], node[_WTAU, p] = f, thd, node[_WH, p] / thd
+
+
+@jit_inline
+def _level_sums(weights, L, n, stride, scr):
     """(half period, half turn) of level L (n intervals, every stride-th point of the finest)
-    from dt/ds in scr's row tau_row and chidot in row _CHD."""
+    from dt/ds in scr's row _TAU and chidot in row _CHD."""
     per, turn = 0.0, 0.0
-    r = uintp(tau_row)
     for j in range(uintp(n + 1)):
         k = j * uintp(stride)
-        wt = weights[L, k] * scr[r, k]
+        wt = weights[L, k] * scr[_TAU, k]
         per += wt
         turn += wt * scr[_CHD, k]
     return per, turn
@@ -488,7 +528,6 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
     s_m, c_m = math.sin(m), math.cos(m)  # theta = m + h sin s: `sincos_shift`
     # --- nested Clenshaw-Curtis levels until period and turn converge --------------------------
     per_prev, turn_prev = math.nan, math.nan
-    per_pp, turn_pp = math.nan, math.nan  # the last level's sums with F as computed
     level = -1
     for L in range(LEVELS):
         n = FIRST_N << L
@@ -499,22 +538,22 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
                 tau, chd, phd, sth, cth = _end_tau(th, h, inv)
                 scr[_TAU, k], scr[_CHD, k], scr[_PHD, k] = tau, chd, phd
                 scr[_THD, k], scr[_STH, k], scr[_CTH, k] = 0.0, sth, cth
-                scr[_TAUP, k] = tau
             # how far F's rounding leaves each turning point, f_noise / |F'| (|F'| = 2
             # |thetaddot| = 2 h / tau^2 there), against the half-range h: past
-            # `END_SPREAD_LIMIT` the integrator's; past END_MODEL_SPREAD, F from its expansion
-            # at the points nearest that end (`_end_model`)
+            # `END_SPREAD_LIMIT` the integrator's; past END_DIFF_SPREAD, F from its difference
+            # about that end at the points of its half (`_F_about`)
             a_lo = 2.0 * h / (scr[_TAU, 0] * scr[_TAU, 0])
             a_hi = 2.0 * h / (scr[_TAU, MAX_N] * scr[_TAU, MAX_N])
             spread_lo, spread_hi = f_noise / (a_lo * h), f_noise / (a_hi * h)
             if not max(spread_lo, spread_hi) <= END_SPREAD_LIMIT:
                 return UNCONVERGED
-            b_lo = b_hi = reach_lo = reach_hi = 0.0
-            if spread_lo > END_MODEL_SPREAD:
-                b_lo, reach_lo = _end_model(lo, 1.0, h, a_lo, f_noise, inv)
-            if spread_hi > END_MODEL_SPREAD:
-                b_hi, reach_hi = _end_model(hi, -1.0, h, a_hi, f_noise, inv)
-            modelled = reach_lo > 0.0 or reach_hi > 0.0
+            reach_lo = _diff_reach(spread_lo, f_noise, a_lo, h)
+            reach_hi = _diff_reach(spread_hi, f_noise, a_hi, h)
+            end_lo = end_hi = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+            if reach_lo > 0.0:
+                end_lo = _end_terms(lo, inv)
+            if reach_hi > 0.0:
+                end_hi = _end_terms(hi, inv)
             first, step, count = stride, stride, n - 1
         else:  # the points between the last level's
             first, step, count = stride, 2 * stride, n // 2
@@ -534,17 +573,22 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
             thd = math.sqrt(f)
             node[_WCHD, p], node[_WPHD, p], node[_WF, p] = chd, phd, f
             node[_WTHD, p], node[_WTAU, p] = thd, node[_WH, p] / thd
-        if modelled:  # F from the ends' expansions at the points within their reach
-            for p in range(uintp(count)):
-                k = first + p * step
-                # theta - lo = h (1 + sin s) = h cos^2 s / (1 - sin s): no cancellation
-                xl = h * cos_s[k] * cos_s[k] / (1.0 - sin_s[k])
-                xh = h * cos_s[k] * cos_s[k] / (1.0 + sin_s[k])
-                fm = (a_lo + b_lo * xl) * xl if xl < reach_lo else node[_WF, p]
-                fm = (a_hi + b_hi * xh) * xh if xh < reach_hi else fm
-                thd = math.sqrt(fm)
-                node[_WTAUP, p] = node[_WTAU, p]
-                node[_WTHD, p], node[_WTAU, p] = thd, node[_WH, p] / thd
+        # F about a slow end (`_F_about`) at the points within its reach: the first points
+        # (s rising) from lo, the last from hi
+        for p in range(uintp(count)):
+            k = first + p * step
+            # theta - lo = h (1 + sin s) = h cos^2 s / (1 - sin s): no cancellation
+            x = h * cos_s[k] * cos_s[k] / (1.0 - sin_s[k])
+            if not x < reach_lo:
+                break
+            _set_about(node, p, x, end_lo, inv)
+        for q in range(uintp(count)):
+            p = uintp(count) - uintp(1) - q
+            k = first + p * step
+            x = h * cos_s[k] * cos_s[k] / (1.0 + sin_s[k])
+            if not x < reach_hi:
+                break
+            _set_about(node, p, -x, end_hi, inv)
         for p in range(uintp(count)):
             if not node[_WF, p] > 0.0:
                 return UNCONVERGED
@@ -552,24 +596,11 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
             scr[_TAU, k], scr[_CHD, k] = node[_WTAU, p], node[_WCHD, p]
             scr[_PHD, k], scr[_THD, k] = node[_WPHD, p], node[_WTHD, p]
             scr[_STH, k], scr[_CTH, k] = node[_WS, p], node[_WC, p]
-        if modelled:
-            for p in range(uintp(count)):
-                scr[_TAUP, first + p * step] = node[_WTAUP, p]
-        # the sums with the ends' expansions (the result), and with F as computed: the level is
-        # taken when the latter converge, so that the expansions never let through a launch
-        # whose sums F's rounding keeps from converging (they drift there as N^2, and where the
-        # expansions do not hold them, near -90 deg with F' at 1e-4, the result can be off by
-        # 1e-6 deg while the expansions' sums agree)
-        per, turn = _level_sums(weights, L, n, stride, scr, _TAU)
-        per_p, turn_p = per, turn
-        if modelled:
-            per_p, turn_p = _level_sums(weights, L, n, stride, scr, _TAUP)
-        if (L > 0 and _agree(per_p, turn_p, per_pp, turn_pp)
-                and _agree(per, turn, per_prev, turn_prev)):
+        per, turn = _level_sums(weights, L, n, stride, scr)
+        if L > 0 and _agree(per, turn, per_prev, turn_prev):
             level = L
             break
         per_prev, turn_prev = per, turn
-        per_pp, turn_pp = per_p, turn_p
     if level < 0 or not (math.isfinite(per) and math.isfinite(turn)):
         return UNCONVERGED
     # --- the path at the level before (its period and turn agree with this one's to
