@@ -113,7 +113,7 @@ def main() -> None:
     print(f"{y0.shape[1]} launches (box, steady-circle swings: {args.n} each), seed "
           f"{args.seed}; END_SPREAD_LIMIT = {limit:g}; turn per cycle against the fixed frame "
           f"at rtol 1e-12")
-    edges = [0.0] + [10.0 ** e for e in range(-14, -3)] + [math.inf]
+    edges = [0.0] + [10.0 ** e for e in range(-14, -2)] + [math.inf]
     for a, b in zip(edges[:-1], edges[1:]):
         m = done_free & np.isfinite(err) & (s >= a) & (s < b)
         if not m.any():

@@ -93,17 +93,16 @@ MAX_N = FIRST_N << (LEVELS - 1)
 #: N = MAX_N; at 5e-9 all do, within 1.5e-7 deg: `benchmarks/quadrature_vertical.py`)
 QUAD_RTOL, TURN_TOL = 1e-9, 5e-9
 #: the largest uncertainty of a turning point that F's rounding leaves (f_noise / |F'| there), as
-#: a fraction of the half-range h, at which the quadrature is trusted. Past it the ends' points
-#: spoil the integrals: a small swing (F small everywhere) near a steady circle, or near the
-#: vertical, where F is a difference of large terms. Measured against the fixed frame at rtol
-#: 1e-12 with the limit off (`benchmarks/quadrature_ends.py`, and 1100 launches more with small
-#: swings at 88.5-89.99 deg), with chidot in its plain Jellett form, the largest turn-per-cycle
-#: error below theta max 89.8 deg: under 1e-11, 1.5e-7 deg; 1e-11-1e-10, 5.3e-7 deg, and 3.2e-6
-#: deg for a 0.38 deg swing near a steady circle at 3 deg of tilt (5e-11); 1e-10-1e-9, 1.9e-6
-#: deg; beyond, 2.5e-5 to 6.6e-3 deg. With chidot about the vertical (`_rates_at`),
-#: `quadrature_ends.py --n 300`: under 1e-11, 3.4e-9 deg; 1e-11-1e-10, 1.5e-8 deg. 1.1 % of the
-#: headline map's launches are past it
-END_SPREAD_LIMIT = 1e-11
+#: a fraction of the half-range h, at which the quadrature is trusted: a small swing (F small
+#: everywhere) near a steady circle. With F as computed at every point, past 1e-11 the ends'
+#: points spoilt the integrals (3.2e-6 deg for a 0.38 deg swing at 3 deg of tilt; beyond 1e-10,
+#: 2.5e-5 to 6.6e-3 deg). With F about the ends (`_F_about`), against the fixed frame at rtol
+#: 1e-12 with the limit off (`benchmarks/quadrature_ends.py --n 300`, seed 0; swings down to
+#: 3e-4 deg): under 1e-8, 5.1e-10 deg; 1e-8 to 1e-4, 3.5e-7 deg, as against a 40-digit
+#: quadrature (the levels' agreement, `TURN_TOL`, on turns near 360 deg: with it and QUAD_RTOL a
+#: hundredth as wide, 3.4e-9 deg). A launch past it goes to the integrator: 1 in 40 000 of the
+#: headline map's
+END_SPREAD_LIMIT = 1e-05
 #: an end whose F' leaves its root uncertain by more than this fraction of the half-range h
 #: (f_noise / |F'| / h) takes F from its difference about the end (`_F_about`) at the points
 #: where F's rounding is over END_DIFF_RTOL of it (`_diff_reach`)
@@ -579,14 +578,14 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
             k = first + p * step
             # theta - lo = h (1 + sin s) = h cos^2 s / (1 - sin s): no cancellation
             x = h * cos_s[k] * cos_s[k] / (1.0 - sin_s[k])
-            if not x < reach_lo:
+            if not x <= reach_lo:
                 break
             _set_about(node, p, x, end_lo, inv)
         for q in range(uintp(count)):
             p = uintp(count) - uintp(1) - q
             k = first + p * step
             x = h * cos_s[k] * cos_s[k] / (1.0 + sin_s[k])
-            if not x < reach_hi:
+            if not x <= reach_hi:
                 break
             _set_about(node, p, -x, end_hi, inv)
         for p in range(uintp(count)):
