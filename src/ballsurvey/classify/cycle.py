@@ -96,12 +96,11 @@ QUAD_RTOL, TURN_TOL = 1e-9, 5e-9
 #: a fraction of the half-range h, at which the quadrature is trusted: a small swing (F small
 #: everywhere) near a steady circle. With F as computed at every point, past 1e-11 the ends'
 #: points spoilt the integrals (3.2e-6 deg for a 0.38 deg swing at 3 deg of tilt; beyond 1e-10,
-#: 2.5e-5 to 6.6e-3 deg). With F about the ends (`_F_about`), against the fixed frame at rtol
-#: 1e-12 with the limit off (`benchmarks/quadrature_ends.py --n 300`, seed 0; swings down to
-#: 3e-4 deg): under 1e-8, 5.1e-10 deg; 1e-8 to 1e-4, 3.5e-7 deg, as against a 40-digit
-#: quadrature (the levels' agreement, `TURN_TOL`, on turns near 360 deg: with it and QUAD_RTOL a
-#: hundredth as wide, 3.4e-9 deg). A launch past it goes to the integrator: 1 in 40 000 of the
-#: headline map's
+#: 2.5e-5 to 6.6e-3 deg). With F about the ends (`_F_about`, `_root_about`), against the fixed
+#: frame at rtol 1e-12 with the limit off (`benchmarks/quadrature_ends.py --n 300`, seed 0;
+#: swings down to 1e-4 deg): under 1e-8, 1e-10 deg; 1e-8 to 1e-5, 9.9e-9 deg; 1e-5 to 1e-4,
+#: 3.8e-8 deg; 1e-4 to 1e-3, 2.5e-7 deg; beyond, 1.8e-6 deg. A launch past it goes to the
+#: integrator: 1 in 40 000 of the headline map's
 END_SPREAD_LIMIT = 1e-05
 #: an end whose F' leaves its root uncertain by more than this fraction of the half-range h
 #: (f_noise / |F'| / h) takes F from its difference about the end (`_F_about`) at the points
@@ -403,6 +402,37 @@ def _set_about(node, p, dx, end, inv):
     node[_WF, p], node[_WTHD, p], node[_WTAU, p] = f, thd, node[_WH, p] / thd
 
 
+@jit
+def _root_about(t, e, end, h, inv):
+    """The turning point near t solved again by Newton's method on F about the other end e
+    (`_F_about`; `end`: its terms); NaN where it moves by more than a hundredth of the
+    half-range h (F's rounding leaves it uncertain by at most END_SPREAD_LIMIT of h)."""
+    x = t
+    for _ in range(8):
+        sth, cth, chd, phd, _ = _rates(x, inv)
+        g = _F_about(sth, cth, chd, x - e, end, inv)
+        thdd = accelerations(sth, cth, math.sqrt(max(g, 0.0)), chd, phd, inv[2], inv[3],
+                             inv[4])[0]
+        if thdd == 0.0:
+            break
+        dx = 0.5 * g / thdd  # F' = 2 thetaddot
+        x -= dx
+        if not abs(x - t) <= 0.01 * h:
+            return math.nan
+        if abs(dx) <= 1e-16 * abs(x):
+            break
+    return x
+
+
+@jit_inline
+def _set_ends(scr, lo, hi, h, inv):
+    """scr's columns of the ends (0 and MAX_N): dt/ds's limit, the rates, sin and cos."""
+    for k in (0, MAX_N):
+        tau, chd, phd, sth, cth = _end_tau(lo if k == 0 else hi, h, inv)
+        scr[_TAU, k], scr[_CHD, k], scr[_PHD, k] = tau, chd, phd
+        scr[_THD, k], scr[_STH, k], scr[_CTH, k] = 0.0, sth, cth
+
+
 @jit_inline
 def _level_sums(weights, L, n, stride, scr):
     """(half period, half turn) of level L (n intervals, every stride-th point of the finest)
@@ -532,11 +562,7 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
         n = FIRST_N << L
         stride = MAX_N // n
         if L == 0:  # the ends: the turning points, where dt/ds is its limit
-            for k in (0, MAX_N):
-                th = lo if k == 0 else hi
-                tau, chd, phd, sth, cth = _end_tau(th, h, inv)
-                scr[_TAU, k], scr[_CHD, k], scr[_PHD, k] = tau, chd, phd
-                scr[_THD, k], scr[_STH, k], scr[_CTH, k] = 0.0, sth, cth
+            _set_ends(scr, lo, hi, h, inv)
             # how far F's rounding leaves each turning point, f_noise / |F'| (|F'| = 2
             # |thetaddot| = 2 h / tau^2 there), against the half-range h: past
             # `END_SPREAD_LIMIT` the integrator's; past END_DIFF_SPREAD, F from its difference
@@ -553,6 +579,24 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
                 end_lo = _end_terms(lo, inv)
             if reach_hi > 0.0:
                 end_hi = _end_terms(hi, inv)
+            if reach_lo >= h and reach_hi >= h:
+                # the ends' differences meet in the middle (a small swing): each takes the
+                # energy at its own end, and the two ends, roots of F as computed, differ in it
+                # by F's rounding, a jump in the integrands there of up to END_SPREAD_LIMIT of
+                # them. So one end is solved again as the root of F about the other (the launch,
+                # where it is an end: its energy is the launch's)
+                if thd0 == 0.0 and th0 == hi:
+                    lo = _root_about(lo, hi, end_hi, h, inv)
+                    end_lo = _end_terms(lo, inv)
+                else:
+                    hi = _root_about(hi, lo, end_lo, h, inv)
+                    end_hi = _end_terms(hi, inv)
+                m, h = 0.5 * (hi + lo), 0.5 * (hi - lo)
+                if not h > 0.0:
+                    return UNCONVERGED
+                s_m, c_m = math.sin(m), math.cos(m)
+                reach_lo = reach_hi = h
+                _set_ends(scr, lo, hi, h, inv)
             first, step, count = stride, stride, n - 1
         else:  # the points between the last level's
             first, step, count = stride, 2 * stride, n // 2
