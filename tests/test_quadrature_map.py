@@ -202,7 +202,8 @@ def test_small_swings_near_steady_circles_against_the_fixed_frame():
     cycle off by 1e-5 to 3e-3 deg). With F about the ends (`cycle._F_about`), and one end solved
     again about the other (`cycle._root_about`: else the two halves take energies that differ
     by F's rounding, 3.4e-7 deg off), each is done and within 1e-7 deg of the fixed frame at
-    rtol 1e-12 in turn per cycle (6.8e-8 deg at most), as are ordinary swings."""
+    rtol 1e-12 in turn per cycle (2.9e-8 deg at most), as are ordinary swings; the one near the
+    vertical, past `cycle.SMALL_SWING_TILT`, goes to the integrator."""
     from ballsurvey.compose import FALLBACK_H_INIT, FALLBACK_H_MAX, STEP_OBSERVER
     from ballsurvey.integrate.adaptive import integrate_adaptive
     from ballsurvey.physics.steady import spin_for_circle
@@ -227,10 +228,11 @@ def test_small_swings_near_steady_circles_against_the_fixed_frame():
     ref = integrate_adaptive(y0, p, T, 1e-12, 1e-15, fixed_frame=True, observer=STEP_OBSERVER,
                              n_slots=ob.N_OBS, h_init=FALLBACK_H_INIT, h_max=FALLBACK_H_MAX / 10,
                              stop_after=3, parallel=False)
-    assert (status == cycle.DONE).all()
+    near = np.arange(len(th)) == len(th) - 4  # the 0.002 deg swing at 89.5 deg
+    assert (status[~near] == cycle.DONE).all() and status[near] == cycle.UNCONVERGED
     res = ref._replace(obs=obs, formulation=np.full_like(ref.formulation, QUADRATURE))
     got, want = (classify(r, BALL.flat_face_theta_rad) for r in (res, ref))
-    err = np.abs(fold_deg(got["turn_per_cycle_deg"] - want["turn_per_cycle_deg"]))
+    err = np.abs(fold_deg(got["turn_per_cycle_deg"] - want["turn_per_cycle_deg"]))[~near]
     assert err.max() < 1e-7, err
 
 

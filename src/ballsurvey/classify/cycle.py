@@ -92,6 +92,11 @@ MAX_N = FIRST_N << (LEVELS - 1)
 #: of noise (at 5e-10, 1-5 of 300 launches with theta max 89.5-89.99 deg do not converge by
 #: N = MAX_N; at 5e-9 all do, within 1.5e-7 deg: `benchmarks/quadrature_vertical.py`)
 QUAD_RTOL, TURN_TOL = 1e-9, 5e-9
+#: a swing whose end comes within VERTICAL_CLOSE (rad, 0.01 deg) of +-90 deg takes the turn's
+#: agreement at TURN_TOL_CLOSE: there chidot's peak at the end converges slowly with N, and
+#: on turns of a cycle or more TURN_TOL let 1.3-1.6e-6 deg through (swings from within 4e-4
+#: deg of -90 deg)
+VERTICAL_CLOSE, TURN_TOL_CLOSE = math.radians(0.01), 5e-10
 #: the largest uncertainty of a turning point that F's rounding leaves (f_noise / |F'| there), as
 #: a fraction of the half-range h, at which the quadrature is trusted: a small swing (F small
 #: everywhere) near a steady circle. With F as computed at every point, past 1e-11 the ends'
@@ -102,6 +107,14 @@ QUAD_RTOL, TURN_TOL = 1e-9, 5e-9
 #: 3.8e-8 deg; 1e-4 to 1e-3, 2.5e-7 deg; beyond, 1.8e-6 deg. A launch past it goes to the
 #: integrator: 1 in 40 000 of the headline map's
 END_SPREAD_LIMIT = 1e-05
+#: past END_SPREAD_PLAIN, a swing is taken only where F about the ends covers it (both ends
+#: slow) and it keeps to tilts within SMALL_SWING_TILT (rad) of the horizontal. F is then small
+#: everywhere, and the launch's own invariants, rounded, perturb it by up to a quarter of the
+#: uncertainty, relatively: a small swing near a steady circle hardly feels that (its period
+#: hardly depends on its energy), but a swing of 0.1-1.7 deg at -88 to -89.9 deg whose F is
+#: 1e-8 of the energy's terms was 1.4e-6 to 1.2e-4 deg off against 40 digits (an adversarial
+#: search; away from the vertical, 136 small swings of the same search were within 2.2e-8 deg)
+END_SPREAD_PLAIN, SMALL_SWING_TILT = 1e-11, math.radians(85.0)
 #: an end whose F' leaves its root uncertain by more than this fraction of the half-range h
 #: (f_noise / |F'| / h) takes F from its difference about the end (`_F_about`) at the points
 #: where F's rounding is over END_DIFF_RTOL of it (`_diff_reach`)
@@ -447,10 +460,10 @@ def _level_sums(weights, L, n, stride, scr):
 
 
 @jit
-def _agree(per, turn, per0, turn0):
-    """Two levels' period and turn agree to QUAD_RTOL and TURN_TOL."""
+def _agree(per, turn, per0, turn0, turn_tol):
+    """Two levels' period and turn agree to QUAD_RTOL and turn_tol."""
     return (abs(per - per0) <= QUAD_RTOL * per
-            and abs(turn - turn0) <= TURN_TOL * max(1.0, abs(turn)))
+            and abs(turn - turn0) <= turn_tol * max(1.0, abs(turn)))
 
 
 @jit_inline
@@ -555,6 +568,7 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
     if not h > 0.0:
         return UNCONVERGED
     s_m, c_m = math.sin(m), math.cos(m)  # theta = m + h sin s: `sincos_shift`
+    turn_tol = TURN_TOL if 0.5 * math.pi - max(-lo, hi) > VERTICAL_CLOSE else TURN_TOL_CLOSE
     # --- nested Clenshaw-Curtis levels until period and turn converge --------------------------
     per_prev, turn_prev = math.nan, math.nan
     level = -1
@@ -572,6 +586,7 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
             spread_lo, spread_hi = f_noise / (a_lo * h), f_noise / (a_hi * h)
             if not max(spread_lo, spread_hi) <= END_SPREAD_LIMIT:
                 return UNCONVERGED
+            small = not max(spread_lo, spread_hi) <= END_SPREAD_PLAIN
             reach_lo = _diff_reach(spread_lo, f_noise, a_lo, h)
             reach_hi = _diff_reach(spread_hi, f_noise, a_hi, h)
             end_lo = end_hi = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
@@ -597,6 +612,11 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
                 s_m, c_m = math.sin(m), math.cos(m)
                 reach_lo = reach_hi = h
                 _set_ends(scr, lo, hi, h, inv)
+            # past END_SPREAD_PLAIN, only a swing that F about the ends covers (both ends slow)
+            # and that keeps SMALL_SWING_TILT from the vertical
+            if small and not (reach_lo >= h and reach_hi >= h
+                              and max(-lo, hi) <= SMALL_SWING_TILT):
+                return UNCONVERGED
             first, step, count = stride, stride, n - 1
         else:  # the points between the last level's
             first, step, count = stride, 2 * stride, n // 2
@@ -640,7 +660,7 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
             scr[_PHD, k], scr[_THD, k] = node[_WPHD, p], node[_WTHD, p]
             scr[_STH, k], scr[_CTH, k] = node[_WS, p], node[_WC, p]
         per, turn = _level_sums(weights, L, n, stride, scr)
-        if L > 0 and _agree(per, turn, per_prev, turn_prev):
+        if L > 0 and _agree(per, turn, per_prev, turn_prev, turn_tol):
             level = L
             break
         per_prev, turn_prev = per, turn
