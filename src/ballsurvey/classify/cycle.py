@@ -35,11 +35,11 @@ take F from its difference from the energy at the end, free of cancellation (`_F
 instead of F as computed, a difference of terms of the energy's size. Each level's new points
 take their rates in a loop free of calls, which runs in SIMD lanes (as does the path's per-point
 algebra: sines, cosines and arctangents in those loops are `trig`'s, plain arithmetic); the
-numbers are those of one point at a
-time. The period and turn are the last level's; the path is taken at the level before
-(its period and turn agree with the last's to those tolerances): there the cumulative integrals
-(Chebyshev integration matrix) give, at every point, the time, the heading chi (from chidot) and G's
-position (from its velocity, in the heading frame turned by chi).
+numbers are those of one point at a time. The period and turn are the last level's; the path is
+taken at the level before (its period and turn agree with the last's to those tolerances): there
+the cumulative integrals (Chebyshev integration matrix) give, at every point, the time, the
+heading chi (from chidot) and G's position (from its velocity, in the heading frame turned by
+chi).
 
 From them, per launch, the observer's slots (`observer.SLOTS`) are filled as the stepping observer
 would fill them after the same number of theta maxima, so the one labeller (`labels.label_fields`)
