@@ -115,6 +115,11 @@ END_SPREAD_LIMIT = 1e-05
 #: 1e-8 of the energy's terms was 1.4e-6 to 1.2e-4 deg off against 40 digits (an adversarial
 #: search; away from the vertical, 136 small swings of the same search were within 2.2e-8 deg)
 END_SPREAD_PLAIN, SMALL_SWING_TILT = 1e-11, math.radians(85.0)
+#: a swing with an end within 1 deg of the vertical that takes F about a slow end takes a level
+#: only where the sums with F as computed converge too: there `_F_about` loses digits, and
+#: an adversarial search found swings from within 0.01 deg of -90 deg 1e-6 to 4.5e-5 deg off
+#: without that gate (the integrator's with it)
+GATE_TILT = math.radians(89.0)
 #: an end whose F' leaves its root uncertain by more than this fraction of the half-range h
 #: (f_noise / |F'| / h) takes F from its difference about the end (`_F_about`) at the points
 #: where F's rounding is over END_DIFF_RTOL of it (`_diff_reach`)
@@ -131,8 +136,8 @@ ROOT_NOISE = 16.0
 #: a launch at rest in theta starts its search this far inside (rad)
 START_OFFSET = 1e-9
 #: per-point scratch columns
-_TAU, _CHD, _PHD, _THD, _STH, _CTH = range(6)
-N_SCRATCH = 6
+_TAU, _CHD, _PHD, _THD, _STH, _CTH, _TAUP = range(7)
+N_SCRATCH = 7
 #: per-point rows of the path's scratch (`cycle_one`'s node): s, dt/ds, chidot dt/ds, u, w dt/ds,
 #: |path heading rate|, speed, friction demand, normal force, chi, x, y, two work rows, w
 (_SS, _TAU_C, _CHD_TAU, _U, _W_TAU, _PSID, _SPEED, _FRIC, _NORM, _CHI, _X, _Y, _FX, _FY,
@@ -143,7 +148,7 @@ N_NODE = 15
 _IN_CHD, _IN_PHD, _IN_THD, _IN_STH, _IN_CTH = _CHI, _X, _Y, _FX, _FY
 #: node's rows as the level stage's work rows: sin, cos, h cos s, chidot, phidot, F, thetadot,
 #: dt/ds of the level's new points, and their dt/ds from F as computed (`_end_model`)
-_WS, _WC, _WH, _WCHD, _WPHD, _WF, _WTHD, _WTAU = range(8)
+_WS, _WC, _WH, _WCHD, _WPHD, _WF, _WTHD, _WTAU, _WTAUP = range(9)
 
 
 @cache
@@ -444,16 +449,18 @@ def _set_ends(scr, lo, hi, h, inv):
         tau, chd, phd, sth, cth = _end_tau(lo if k == 0 else hi, h, inv)
         scr[_TAU, k], scr[_CHD, k], scr[_PHD, k] = tau, chd, phd
         scr[_THD, k], scr[_STH, k], scr[_CTH, k] = 0.0, sth, cth
+        scr[_TAUP, k] = tau
 
 
 @jit_inline
-def _level_sums(weights, L, n, stride, scr):
+def _level_sums(weights, L, n, stride, scr, tau_row):
     """(half period, half turn) of level L (n intervals, every stride-th point of the finest)
-    from dt/ds in scr's row _TAU and chidot in row _CHD."""
+    from dt/ds in scr's row tau_row and chidot in row _CHD."""
     per, turn = 0.0, 0.0
+    r = uintp(tau_row)
     for j in range(uintp(n + 1)):
         k = j * uintp(stride)
-        wt = weights[L, k] * scr[_TAU, k]
+        wt = weights[L, k] * scr[r, k]
         per += wt
         turn += wt * scr[_CHD, k]
     return per, turn
@@ -571,6 +578,7 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
     turn_tol = TURN_TOL if 0.5 * math.pi - max(-lo, hi) > VERTICAL_CLOSE else TURN_TOL_CLOSE
     # --- nested Clenshaw-Curtis levels until period and turn converge --------------------------
     per_prev, turn_prev = math.nan, math.nan
+    per_pp, turn_pp = math.nan, math.nan  # the last level's sums with F as computed (`gated`)
     level = -1
     for L in range(LEVELS):
         n = FIRST_N << L
@@ -617,6 +625,10 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
             if small and not (reach_lo >= h and reach_hi >= h
                               and max(-lo, hi) <= SMALL_SWING_TILT):
                 return UNCONVERGED
+            # within GATE_TILT of the vertical `_F_about` loses digits (its chidot cos term is a
+            # difference over cos theta): a level is taken there only when the sums with F as
+            # computed converge too
+            gated = (reach_lo > 0.0 or reach_hi > 0.0) and max(-lo, hi) > GATE_TILT
             first, step, count = stride, stride, n - 1
         else:  # the points between the last level's
             first, step, count = stride, 2 * stride, n // 2
@@ -636,6 +648,9 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
             thd = math.sqrt(f)
             node[_WCHD, p], node[_WPHD, p], node[_WF, p] = chd, phd, f
             node[_WTHD, p], node[_WTAU, p] = thd, node[_WH, p] / thd
+        if gated:  # dt/ds from F as computed, kept for the gate's sums
+            for p in range(uintp(count)):
+                node[_WTAUP, p] = node[_WTAU, p]
         # F about a slow end (`_F_about`) at the points within its reach: the first points
         # (s rising) from lo, the last from hi
         for p in range(uintp(count)):
@@ -659,11 +674,18 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
             scr[_TAU, k], scr[_CHD, k] = node[_WTAU, p], node[_WCHD, p]
             scr[_PHD, k], scr[_THD, k] = node[_WPHD, p], node[_WTHD, p]
             scr[_STH, k], scr[_CTH, k] = node[_WS, p], node[_WC, p]
-        per, turn = _level_sums(weights, L, n, stride, scr)
-        if L > 0 and _agree(per, turn, per_prev, turn_prev, turn_tol):
+        per, turn = _level_sums(weights, L, n, stride, scr, _TAU)
+        per_p, turn_p = per, turn
+        if gated:
+            for p in range(uintp(count)):
+                scr[_TAUP, first + p * step] = node[_WTAUP, p]
+            per_p, turn_p = _level_sums(weights, L, n, stride, scr, _TAUP)
+        if (L > 0 and _agree(per, turn, per_prev, turn_prev, turn_tol)
+                and _agree(per_p, turn_p, per_pp, turn_pp, turn_tol)):
             level = L
             break
         per_prev, turn_prev = per, turn
+        per_pp, turn_pp = per_p, turn_p
     if level < 0 or not (math.isfinite(per) and math.isfinite(turn)):
         return UNCONVERGED
     # --- the path at the level before (its period and turn agree with this one's to
