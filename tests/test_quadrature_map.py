@@ -195,6 +195,26 @@ def test_quadrature_tables_integrate_smooth_functions_to_rounding():
         assert np.abs(q @ np.exp(sl) - (np.exp(sl) - math.exp(-math.pi / 2))).max() < 1e-14
 
 
+def _against_the_fixed_frame(launches, T_s, stop_after=0):
+    """(status, labelled fields by quadrature, the same by the fixed-frame integration at rtol
+    1e-12) of launches (theta0 deg, thetadot0, chidot0, phidot0 rad/s), the paper's ball, to
+    T_s seconds (a launch not done has NaN fields by quadrature)."""
+    from ballsurvey.compose import FALLBACK_H_INIT, FALLBACK_H_MAX, STEP_OBSERVER
+    from ballsurvey.integrate.adaptive import integrate_adaptive
+
+    th, td, cd, pd = np.array(launches).T
+    y0 = launch_state(th, td, cd, pd, TU)
+    p = np.repeat(P[:, None], len(th), 1)
+    T = T_s / TU
+    obs, status = cycle.cycles_by_quadrature(y0, p, T, stop_after=stop_after, parallel=False)
+    ref = integrate_adaptive(y0, p, T, 1e-12, 1e-15, fixed_frame=True, observer=STEP_OBSERVER,
+                             n_slots=ob.N_OBS, h_init=FALLBACK_H_INIT, h_max=FALLBACK_H_MAX / 10,
+                             stop_after=stop_after, parallel=False)
+    res = ref._replace(obs=obs, formulation=np.full_like(ref.formulation, QUADRATURE))
+    got, want = (classify(r, BALL.flat_face_theta_rad) for r in (res, ref))
+    return status, got, want
+
+
 def test_small_swings_near_steady_circles_against_the_fixed_frame():
     """A swing of a fraction of a degree near a steady circle, or near the vertical: F is small
     everywhere, and as computed (a difference of terms of the energy's size) its rounding left
@@ -204,8 +224,6 @@ def test_small_swings_near_steady_circles_against_the_fixed_frame():
     by F's rounding, 3.4e-7 deg off), each is done and within 1e-7 deg of the fixed frame at
     rtol 1e-12 in turn per cycle (2.9e-8 deg at most), as are ordinary swings; the one near the
     vertical, past `cycle.SMALL_SWING_TILT`, goes to the integrator."""
-    from ballsurvey.compose import FALLBACK_H_INIT, FALLBACK_H_MAX, STEP_OBSERVER
-    from ballsurvey.integrate.adaptive import integrate_adaptive
     from ballsurvey.physics.steady import spin_for_circle
 
     c, A, B = P
@@ -220,18 +238,9 @@ def test_small_swings_near_steady_circles_against_the_fixed_frame():
     cases.append((2.8575846541882304, 0.0, 7.25673986722872, 4.843819979010653))
     cases.append((89.5144929820436, 0.0, 45.29307705053058, 5.774471326444537))
     cases += [(-5.0, 0.0, 4.05, -3.0), (30.0, 0.0, 3.75, -3.0), (20.0, 0.5, -6.0, 4.0)]
-    th, td, cd, pd = np.array(cases).T
-    y0 = launch_state(th, td, cd, pd, TU)
-    p = np.repeat(P[:, None], len(th), 1)
-    T = 20.0 / TU
-    obs, status = cycle.cycles_by_quadrature(y0, p, T, stop_after=3, parallel=False)
-    ref = integrate_adaptive(y0, p, T, 1e-12, 1e-15, fixed_frame=True, observer=STEP_OBSERVER,
-                             n_slots=ob.N_OBS, h_init=FALLBACK_H_INIT, h_max=FALLBACK_H_MAX / 10,
-                             stop_after=3, parallel=False)
-    near = np.arange(len(th)) == len(th) - 4  # the 0.002 deg swing at 89.5 deg
+    status, got, want = _against_the_fixed_frame(cases, 20.0, stop_after=3)
+    near = np.arange(len(cases)) == len(cases) - 4  # the 0.002 deg swing at 89.5 deg
     assert (status[~near] == cycle.DONE).all() and status[near] == cycle.UNCONVERGED
-    res = ref._replace(obs=obs, formulation=np.full_like(ref.formulation, QUADRATURE))
-    got, want = (classify(r, BALL.flat_face_theta_rad) for r in (res, ref))
     err = np.abs(fold_deg(got["turn_per_cycle_deg"] - want["turn_per_cycle_deg"]))[~near]
     assert err.max() < 1e-7, err
 
@@ -274,20 +283,8 @@ def test_turn_per_cycle_near_the_vertical_against_the_fixed_frame():
     """Turn per cycle within 2.5e-7 deg of the fixed frame at rtol 1e-12 (itself within 1e-10
     deg of a 40-digit quadrature of the same launches, `benchmarks/quadrature_vertical.py`), and
     theta max within 1e-9 deg, on launches that swing up to 89.93-89.99 deg."""
-    from ballsurvey.compose import FALLBACK_H_INIT, FALLBACK_H_MAX, STEP_OBSERVER
-    from ballsurvey.integrate.adaptive import integrate_adaptive
-
-    th, td, cd, pd = np.array(VERTICAL_TURNS).T
-    y0 = launch_state(th, td, cd, pd, TU)
-    p = np.repeat(P[:, None], len(th), 1)
-    T = 3.0 / TU
-    obs, status = cycle.cycles_by_quadrature(y0, p, T, parallel=False)
+    status, got, want = _against_the_fixed_frame(VERTICAL_TURNS, 3.0)
     assert (status == cycle.DONE).all()
-    ref = integrate_adaptive(y0, p, T, 1e-12, 1e-15, fixed_frame=True, observer=STEP_OBSERVER,
-                             n_slots=ob.N_OBS, h_init=FALLBACK_H_INIT, h_max=FALLBACK_H_MAX / 10,
-                             parallel=False)
-    res = ref._replace(obs=obs, formulation=np.full_like(ref.formulation, QUADRATURE))
-    got, want = (classify(r, BALL.flat_face_theta_rad) for r in (res, ref))
     assert (got["theta_max_deg"] > 89.93).all()
     err = np.abs(fold_deg(got["turn_per_cycle_deg"] - want["turn_per_cycle_deg"]))
     assert err.max() < 2.5e-7, err
@@ -305,20 +302,8 @@ def test_a_slowly_turning_end_near_minus_90_deg_against_the_fixed_frame():
     """Turn per cycle within 5e-7 deg of the fixed frame at rtol 1e-12 (within 1.3e-7 deg of a
     40-digit quadrature on such launches, `benchmarks/quadrature_vertical.py --below`), theta
     min within 1e-9 deg."""
-    from ballsurvey.compose import FALLBACK_H_INIT, FALLBACK_H_MAX, STEP_OBSERVER
-    from ballsurvey.integrate.adaptive import integrate_adaptive
-
-    th, td, cd, pd = np.array(SLOW_ENDS).T
-    y0 = launch_state(th, td, cd, pd, TU)
-    p = np.repeat(P[:, None], len(th), 1)
-    T = 15.0 / TU
-    obs, status = cycle.cycles_by_quadrature(y0, p, T, parallel=False)
+    status, got, want = _against_the_fixed_frame(SLOW_ENDS, 15.0)
     assert (status == cycle.DONE).all()
-    ref = integrate_adaptive(y0, p, T, 1e-12, 1e-15, fixed_frame=True, observer=STEP_OBSERVER,
-                             n_slots=ob.N_OBS, h_init=FALLBACK_H_INIT, h_max=FALLBACK_H_MAX / 10,
-                             parallel=False)
-    res = ref._replace(obs=obs, formulation=np.full_like(ref.formulation, QUADRATURE))
-    got, want = (classify(r, BALL.flat_face_theta_rad) for r in (res, ref))
     err = np.abs(fold_deg(got["turn_per_cycle_deg"] - want["turn_per_cycle_deg"]))
     assert err.max() < 5e-7, err
     assert np.abs(got["theta_min_deg"] - want["theta_min_deg"]).max() < 1e-9
