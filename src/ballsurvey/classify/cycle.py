@@ -357,16 +357,23 @@ def _end_tau(th, h, inv):
 
 
 @jit
-def _end_terms(th, inv):
-    """(sin, cos, q, w, chidot cos, (phidot - c chidot) cos) at the end th: the terms of the
-    energy at rest in theta (`_rates_at`) that `_F_about` takes differences of."""
-    E, R, c, A, B, _, _, _, _ = inv
-    sth, cth = math.sin(th), math.cos(th)
-    chd = _rates_at(sth, cth, inv)[0]
+def _energy_terms(sth, cth, chd, inv):
+    """(q, w, chidot cos, (phidot - c chidot) cos) at the tilt whose sine and cosine are sth,
+    cth, chidot chd there: the terms of the energy at rest in theta (`_rates_at`) that
+    `_F_about` takes differences of."""
+    _, R, c, A, B, _, _, _, _ = inv
     sq = math.sqrt(A * B + A * cth * cth + B * (sth - c) ** 2)
     w = R / sq
     chc = chd * cth
-    return sth, cth, sq, w, chc, w * cth + chc * (sth - c)
+    return sq, w, chc, w * cth + chc * (sth - c)
+
+
+@jit
+def _end_terms(th, inv):
+    """(sin, cos, q, w, chidot cos, (phidot - c chidot) cos) at the end th (`_energy_terms`)."""
+    sth, cth = math.sin(th), math.cos(th)
+    sq, w, chc, fwd = _energy_terms(sth, cth, _rates_at(sth, cth, inv)[0], inv)
+    return sth, cth, sq, w, chc, fwd
 
 
 @jit
@@ -382,16 +389,13 @@ def _F_about(sth, cth, chd, dx, end, inv):
     of order |dx| times their slopes: relatively, the same at every distance from the end.
     (The energy it takes is u(end), which differs from the launch's by the rounding that
     leaves the end uncertain: the same launch, perturbed in the last bits.)"""
-    _, R, c, A, B, _, _, _, _ = inv
+    _, _, c, A, B, _, _, _, _ = inv
     s_e, c_e, sq_e, w_e, chc_e, fwd_e = end
     sh, ch = sincos(0.5 * dx)
     sx, vx = 2.0 * sh * ch, 2.0 * sh * sh  # sin dx, 1 - cos dx
     ds = c_e * sx - s_e * vx
     dc = -s_e * sx - c_e * vx
-    sq = math.sqrt(A * B + A * cth * cth + B * (sth - c) ** 2)
-    w = R / sq
-    chc = chd * cth
-    fwd = w * cth + chc * (sth - c)
+    sq, w, chc, fwd = _energy_terms(sth, cth, chd, inv)
     dsq = (A * (cth + c_e) * dc + B * (sth + s_e - 2.0 * c) * ds) / (sq + sq_e)
     dw = -w * dsq / sq_e
     # chidot cos = (B w (sin - c) - J) / (A cos): the numerator's difference, then the ratio's
@@ -588,21 +592,26 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
             # how far F's rounding leaves each turning point, f_noise / |F'| (|F'| = 2
             # |thetaddot| = 2 h / tau^2 there), against the half-range h: past
             # `END_SPREAD_LIMIT` the integrator's; past END_DIFF_SPREAD, F from its difference
-            # about that end at the points of its half (`_F_about`)
+            # about that end at the points within its reach (`_F_about`, `_diff_reach`)
             a_lo = 2.0 * h / (scr[_TAU, 0] * scr[_TAU, 0])
             a_hi = 2.0 * h / (scr[_TAU, MAX_N] * scr[_TAU, MAX_N])
             spread_lo, spread_hi = f_noise / (a_lo * h), f_noise / (a_hi * h)
             if not max(spread_lo, spread_hi) <= END_SPREAD_LIMIT:
                 return UNCONVERGED
-            small = not max(spread_lo, spread_hi) <= END_SPREAD_PLAIN
             reach_lo = _diff_reach(spread_lo, f_noise, a_lo, h)
             reach_hi = _diff_reach(spread_hi, f_noise, a_hi, h)
+            covered = reach_lo >= h and reach_hi >= h  # F about the ends meets in the middle
+            # past END_SPREAD_PLAIN, only a swing that F about the ends covers (both ends slow)
+            # and that keeps SMALL_SWING_TILT from the vertical
+            if (not max(spread_lo, spread_hi) <= END_SPREAD_PLAIN
+                    and not (covered and max(-lo, hi) <= SMALL_SWING_TILT)):
+                return UNCONVERGED
             end_lo = end_hi = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
             if reach_lo > 0.0:
                 end_lo = _end_terms(lo, inv)
             if reach_hi > 0.0:
                 end_hi = _end_terms(hi, inv)
-            if reach_lo >= h and reach_hi >= h:
+            if covered:
                 # the ends' differences meet in the middle (a small swing): each takes the
                 # energy at its own end, and the two ends, roots of F as computed, differ in it
                 # by F's rounding, a jump in the integrands there of up to END_SPREAD_LIMIT of
@@ -620,11 +629,6 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
                 s_m, c_m = math.sin(m), math.cos(m)
                 reach_lo = reach_hi = h
                 _set_ends(scr, lo, hi, h, inv)
-            # past END_SPREAD_PLAIN, only a swing that F about the ends covers (both ends slow)
-            # and that keeps SMALL_SWING_TILT from the vertical
-            if small and not (reach_lo >= h and reach_hi >= h
-                              and max(-lo, hi) <= SMALL_SWING_TILT):
-                return UNCONVERGED
             # within GATE_TILT of the vertical `_F_about` loses digits (its chidot cos term is a
             # difference over cos theta): a level is taken there only when the sums with F as
             # computed converge too
@@ -681,7 +685,7 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
                 scr[_TAUP, first + p * step] = node[_WTAUP, p]
             per_p, turn_p = _level_sums(weights, L, n, stride, scr, _TAUP)
         if (L > 0 and _agree(per, turn, per_prev, turn_prev, turn_tol)
-                and _agree(per_p, turn_p, per_pp, turn_pp, turn_tol)):
+                and (not gated or _agree(per_p, turn_p, per_pp, turn_pp, turn_tol))):
             level = L
             break
         per_prev, turn_prev = per, turn
