@@ -21,7 +21,7 @@ against mp (and how many over 1e-6 deg) and against fixed, and the largest theta
 against mp; then how far the two references are apart. --below does the same near -90 deg: the
 launches' theta min in [-hi, -lo] deg, each run 15 s (the fixed frame's turn needs two cycles;
 near -90 deg it is the less reliable of the two references). --varied: each launch with its own
-ball, non-dimensional c in 0.05-0.5 and A, B in 0.3-0.7 (the paper's: 0.05, 0.42, 0.42 about).
+ball, non-dimensional c in 0.05-0.5 and A, B in 0.3-0.7 (the paper's: 0.11, 0.38, 0.42 about).
 """
 from __future__ import annotations
 
