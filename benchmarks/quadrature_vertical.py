@@ -3,7 +3,8 @@ swings up to within a fraction of a degree of +90 deg, against two references, w
 revision's kernel beside today's when --against is given.
 
     python benchmarks/quadrature_vertical.py [--n 300] [--seed 0] [--lo 89.5] [--hi 89.99]
-                                             [--circles | --below] [--varied] [--against REV]
+                                             [--circles | --below [--at-rest]] [--varied]
+                                             [--against REV]
 
 Launches (the paper's ball) are drawn near the vertical: theta0 85-89.99 deg, half of them with
 thetadot0 in +-0.5 rad/s, chidot0 +-13 and phidot0 +-10 rad/s (swings of about 1 to 6 deg); or,
@@ -20,8 +21,10 @@ Printed per bin of theta max: the launches, the largest |turn per cycle| error o
 against mp (and how many over 1e-6 deg) and against fixed, and the largest theta max error
 against mp; then how far the two references are apart. --below does the same near -90 deg: the
 launches' theta min in [-hi, -lo] deg, each run 15 s (the fixed frame's turn needs two cycles;
-near -90 deg it is the less reliable of the two references). --varied: each launch with its own
-ball, non-dimensional c in 0.05-0.5 and A, B in 0.3-0.7 (the paper's: 0.11, 0.38, 0.42 about).
+near -90 deg it is the less reliable of the two references); with --at-rest the launches are at
+rest in theta at theta0 in [-hi, -lo] deg with chidot0 and phidot0 +-30 rad/s (long swings up
+from a slowly turning end). --varied: each launch with its own ball, non-dimensional c in
+0.05-0.5 and A, B in 0.3-0.7 (the paper's: 0.11, 0.38, 0.42 about).
 """
 from __future__ import annotations
 
@@ -51,12 +54,15 @@ REL = "src/ballsurvey/classify/cycle.py"
 
 
 def draw(n: int, lo: float, hi: float, rng, circles: bool = False,
-         below: bool = False, varied: bool = False) -> tuple[np.ndarray, np.ndarray]:
+         below: bool = False, varied: bool = False,
+         at_rest: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """((4, n) launches (deg, rad/s), (3, n) non-dimensional ball parameters) today's kernel
     does, theta max in [lo, hi] deg (below: -theta min, from theta0 -89.99 to -80 deg, the same
     rates). circles: on a steady circle (tilt 88-89.99 deg, precession +-(1-10) sqrt(g/a)) with
     a tilt rate of 1e-4 to 0.3 rad/s, the smallest swings the kernel does near the vertical.
-    varied: each launch's ball drawn (c 0.05-0.5, A and B 0.3-0.7); else the paper's."""
+    varied: each launch's ball drawn (c 0.05-0.5, A and B 0.3-0.7); else the paper's.
+    at_rest (with below): launched at rest in theta at theta0 -hi..-lo deg, chidot0 and phidot0
+    +-30 rad/s: swings from theta min = theta0 up to tens of degrees."""
     rows, pars = np.empty((4, 0)), np.empty((3, 0))
     while rows.shape[1] < n:
         m = 200_000
@@ -73,6 +79,9 @@ def draw(n: int, lo: float, hi: float, rng, circles: bool = False,
             w = (c + ((B - A) * s + c * (1 - c * s)) * om ** 2) / ((B + 1 - c * s) * om)
             cand = np.array([th_c, rng.choice([-1.0, 1.0], m) * 10 ** rng.uniform(-4, -0.5, m),
                              om / TU, w / TU])  # Eq. (28): physics.steady.spin_for_circle
+        elif at_rest:
+            cand = np.array([-rng.uniform(lo, hi, m), np.zeros(m), rng.uniform(-30.0, 30.0, m),
+                             rng.uniform(-30.0, 30.0, m)])
         else:
             tilt = rng.uniform(-89.99, -80.0, m) if below else rng.uniform(85.0, 89.99, m)
             cand = np.array([tilt,
@@ -155,14 +164,19 @@ def main() -> None:
                     help="near -90 deg: --lo and --hi bound -theta_min, theta0 -89.99 to -80 deg")
     ap.add_argument("--varied", action="store_true",
                     help="each launch with its own ball: c 0.05-0.5, A and B 0.3-0.7")
+    ap.add_argument("--at-rest", action="store_true",
+                    help="with --below: launched at rest in theta at theta0 from -hi to -lo deg, "
+                         "chidot0 and phidot0 +-30 rad/s (swings up to tens of degrees)")
     args = ap.parse_args()
     if args.n < 1 or not args.lo < args.hi < 90.0:
         ap.error("need --n >= 1 and --lo < --hi < 90")
     mp.mp.dps = 40
     if args.below and args.circles:
         ap.error("--below draws no circles")
+    if args.at_rest and not args.below:
+        ap.error("--at-rest goes with --below")
     rows, p = draw(args.n, args.lo, args.hi, np.random.default_rng(args.seed), args.circles,
-                   args.below, args.varied)
+                   args.below, args.varied, args.at_rest)
     y0 = launch_state(*rows, TU)
     T = (15.0 if args.below else 3.0) / TU  # (swings from -90 deg run long)
     kernels = {"today": cycle}

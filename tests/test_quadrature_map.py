@@ -351,6 +351,37 @@ def test_slowly_turning_ends_near_minus_90_deg_against_40_digits(monkeypatch):
         assert max(abs(lo - mlo), abs(hi - mhi)) < math.radians(1e-10)
 
 
+#: launched at rest at -89.94 to -89.95 deg, swinging up to 46-58 deg (the paper's ball): the
+#: launch's end turns slowly (|F'| 0.004) and its root is uncertain by 1e-13 of the half-range;
+#: the levels converge at N = 256, whose points come within 5e-10 rad of that end. With F as
+#: computed there they were 2.8e-6, 2.1e-6 and 1.4e-6 deg off (a search among 3000 such launches)
+AT_REST_NEAR_MINUS_90 = [(-89.9480448251246, 0.0, 28.697033060468314, -25.775976156644123),
+                         (-89.9388138816216, 0.0, 28.262725218307146, -24.38569181600731),
+                         (-89.9437640712382, 0.0, -28.750500810990264, 25.917470838083574)]
+
+
+def test_long_swings_from_rest_near_minus_90_deg_against_40_digits(monkeypatch):
+    """Turn per cycle within 5e-8 deg of the same launch's integrals at 40 digits (mpmath,
+    `benchmarks/quadrature_vertical.py`'s reference): the finest levels' points nearest a slowly
+    turning end take F from its difference about the end wherever their errors would add up
+    (`cycle._diff_reach`), not only where the end is uncertain by over 1e-13 of the swing."""
+    import mpmath as mp
+
+    monkeypatch.syspath_prepend(os.path.join(os.path.dirname(__file__), "..", "benchmarks"))
+    from quadrature_vertical import mp_cycle
+
+    for launch in AT_REST_NEAR_MINUS_90:
+        y0 = launch_state(*(np.array([v]) for v in launch), TU)
+        obs, status = cycle.cycles_by_quadrature(y0, P[:, None], 15.0 / TU, parallel=False)
+        assert status[0] == cycle.DONE, launch
+        lo, hi = obs[ob.O_TH_MIN, 0], obs[ob.O_TH_MAX, 0]
+        with mp.workdps(40):
+            turn = float(mp_cycle(*y0[[2, 5, 6, 7], 0], lo, hi, tuple(P))[0])
+        got = obs[ob.O_C_RAW, 0] - 2.0 * math.pi * obs[ob.O_C_WIND, 0]
+        err = abs(fold_deg(np.array([math.degrees(got - turn)]))[0])
+        assert err < 5e-8, (launch, err)
+
+
 def _kernel_invariants(y):
     """(args, E, J, R, f_noise) of fast state y as `cycle.cycle_one` makes them (E less M g a)."""
     from ballsurvey.physics.euler import jellett, kinetic, routh

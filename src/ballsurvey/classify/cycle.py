@@ -29,10 +29,11 @@ cluster at the turning points, where the tilt's approach to the vertical makes t
 sharp feature), N = 16, 32, ..., 512, nested (each level reuses the last's points) until the period
 and the turn of two successive levels agree to `QUAD_RTOL` and `TURN_TOL` (relative; absolute in rad
 for a turn under 1 rad); not converged at 512: left to the integrator, as is a swing whose turning
-points F's rounding leaves uncertain (`END_SPREAD_LIMIT`). At an end where that uncertainty is
-over END_DIFF_SPREAD of the half-range (a tilt that turns slowly there), the points nearest it
-take F from its difference from the energy at the end, free of cancellation (`_F_about`),
-instead of F as computed, a difference of terms of the energy's size. Each level's new points
+points F's rounding leaves uncertain (`END_SPREAD_LIMIT`). The points so near an end that F's
+rounding is over END_DIFF_RTOL of F, and near enough that the errors it leaves there would add
+up (`_diff_reach`: at an end where the tilt turns slowly), take F from its difference from the
+energy at the end, free of cancellation (`_F_about`), instead of F as computed, a difference of
+terms of the energy's size. Each level's new points
 take their rates in a loop free of calls, which runs in SIMD lanes (as does the path's per-point
 algebra: sines, cosines and arctangents in those loops are `trig`'s, plain arithmetic); the
 numbers are those of one point at a time. The period and turn are the last level's; the path is
@@ -120,10 +121,17 @@ END_SPREAD_PLAIN, SMALL_SWING_TILT = 1e-11, math.radians(85.0)
 #: an adversarial search found swings from within 0.01 deg of -90 deg 1e-6 to 4.5e-5 deg off
 #: without that gate (the integrator's with it)
 GATE_TILT = math.radians(89.0)
-#: an end whose F' leaves its root uncertain by more than this fraction of the half-range h
-#: (f_noise / |F'| / h) takes F from its difference about the end (`_F_about`) at the points
-#: where F's rounding is over END_DIFF_RTOL of it (`_diff_reach`)
-END_DIFF_SPREAD, END_DIFF_RTOL = 1e-13, 1e-12
+#: an end's points take F from its difference about the end (`_F_about`) where F's rounding
+#: is over END_DIFF_RTOL of it and their sum's share of the integrals' rounding error would be
+#: over END_DIFF_TOL (`_diff_reach`). Near an end F as computed is off by a constant of its
+#: rounding, the end's uncertainty sigma (f_noise / |F'|, a fraction of the half-range h) in
+#: units of h: at a distance x its relative error is sigma h / x. The points come as close as
+#: x_j ~ h (pi j / N)^4 / 3 at level N and their weights go as j / N^2, so the error of the
+#: points beyond a distance X is about sigma sqrt(h / X) / 5 of an integral, whatever the
+#: level: nothing for the headline's ends (sigma 1e-16 to 1e-13) at N = 32, but 2.1e-6 deg of
+#: turn per cycle, against 40 digits, for a launch at rest at -89.94 deg (swing to 45.6 deg,
+#: sigma 9e-14) converged at N = 256 (2.9e-9 deg with F about that end)
+END_DIFF_RTOL, END_DIFF_TOL = 1e-12, 5e-12
 #: the vertical less a hair: a tilt whose F is still positive there goes through it
 TILT_LIMIT = 0.5 * math.pi * (1.0 - 1e-13)
 #: first step of the outward search for a turning point, its largest and its least (rad)
@@ -409,11 +417,11 @@ def _F_about(sth, cth, chd, dx, end, inv):
 def _diff_reach(spread, f_noise, a, h):
     """How far from an end (rad) its points take F from `_F_about`: where F's rounding, about
     2 eps E / (a x) of it at a distance x (f_noise / ROOT_NOISE * 2 / (a x)), is over
-    END_DIFF_RTOL; at most the half-range h (the half nearer the end). 0 for an end whose root
-    F's rounding leaves certain to END_DIFF_SPREAD of h."""
-    if not spread > END_DIFF_SPREAD:
-        return 0.0
-    return min(h, f_noise / ROOT_NOISE * 2.0 / (END_DIFF_RTOL * a))
+    END_DIFF_RTOL, and within h (spread / END_DIFF_TOL)^2 of the end (spread: the end's
+    uncertainty over h), beyond which the points' errors sum to about END_DIFF_TOL / 5 of an
+    integral; at most the half-range h (the half nearer the end)."""
+    return min(h, f_noise / ROOT_NOISE * 2.0 / (END_DIFF_RTOL * a),
+               h * (spread / END_DIFF_TOL) ** 2)
 
 
 @jit_inline
@@ -591,8 +599,8 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
             _set_ends(scr, lo, hi, h, inv)
             # how far F's rounding leaves each turning point, f_noise / |F'| (|F'| = 2
             # |thetaddot| = 2 h / tau^2 there), against the half-range h: past
-            # `END_SPREAD_LIMIT` the integrator's; past END_DIFF_SPREAD, F from its difference
-            # about that end at the points within its reach (`_F_about`, `_diff_reach`)
+            # `END_SPREAD_LIMIT` the integrator's; F from its difference about that end at the
+            # points near enough for its rounding to matter (`_F_about`, `_diff_reach`)
             a_lo = 2.0 * h / (scr[_TAU, 0] * scr[_TAU, 0])
             a_hi = 2.0 * h / (scr[_TAU, MAX_N] * scr[_TAU, MAX_N])
             spread_lo, spread_hi = f_noise / (a_lo * h), f_noise / (a_hi * h)
@@ -606,11 +614,10 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
             if (not max(spread_lo, spread_hi) <= END_SPREAD_PLAIN
                     and not (covered and max(-lo, hi) <= SMALL_SWING_TILT)):
                 return UNCONVERGED
+            # an end's terms (`_end_terms`) are computed when a point first comes within its
+            # reach (at the finer levels only, for most ends)
             end_lo = end_hi = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-            if reach_lo > 0.0:
-                end_lo = _end_terms(lo, inv)
-            if reach_hi > 0.0:
-                end_hi = _end_terms(hi, inv)
+            have_lo = have_hi = False
             if covered:
                 # the ends' differences meet in the middle (a small swing): each takes the
                 # energy at its own end, and the two ends, roots of F as computed, differ in it
@@ -618,11 +625,9 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
                 # them. So one end is solved again as the root of F about the other (the launch,
                 # where it is an end: its energy is the launch's)
                 if thd0 == 0.0 and th0 == hi:
-                    lo = _root_about(lo, hi, end_hi, h, inv)
-                    end_lo = _end_terms(lo, inv)
+                    lo = _root_about(lo, hi, _end_terms(hi, inv), h, inv)
                 else:
-                    hi = _root_about(hi, lo, end_lo, h, inv)
-                    end_hi = _end_terms(hi, inv)
+                    hi = _root_about(hi, lo, _end_terms(lo, inv), h, inv)
                 m, h = 0.5 * (hi + lo), 0.5 * (hi - lo)
                 if not h > 0.0:
                     return UNCONVERGED
@@ -632,7 +637,9 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
             # within GATE_TILT of the vertical `_F_about` loses digits (its chidot cos term is a
             # difference over cos theta): a level is taken there only when the sums with F as
             # computed converge too
-            gated = (reach_lo > 0.0 or reach_hi > 0.0) and max(-lo, hi) > GATE_TILT
+            # (the finest level's nearest point to an end: theta - lo = h (1 + sin s), below)
+            nearest = h * cos_s[1] * cos_s[1] / (1.0 - sin_s[1])
+            gated = max(reach_lo, reach_hi) >= nearest and max(-lo, hi) > GATE_TILT
             first, step, count = stride, stride, n - 1
         else:  # the points between the last level's
             first, step, count = stride, 2 * stride, n // 2
@@ -663,6 +670,8 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
             x = h * cos_s[k] * cos_s[k] / (1.0 - sin_s[k])
             if not x <= reach_lo:
                 break
+            if not have_lo:
+                end_lo, have_lo = _end_terms(lo, inv), True
             _set_about(node, p, x, end_lo, inv)
         for q in range(uintp(count)):
             p = uintp(count) - uintp(1) - q
@@ -670,6 +679,8 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
             x = h * cos_s[k] * cos_s[k] / (1.0 + sin_s[k])
             if not x <= reach_hi:
                 break
+            if not have_hi:
+                end_hi, have_hi = _end_terms(hi, inv), True
             _set_about(node, p, -x, end_hi, inv)
         for p in range(uintp(count)):
             if not node[_WF, p] > 0.0:
