@@ -160,8 +160,8 @@ _EXT_SLOTS = (ob.O_C_RMIN, ob.O_C_RMAX, ob.O_FRIC, ob.O_NMIN, ob.O_C_PSID, ob.O_
 _EXT_ROWS = (_FX, _FX, _FRIC, _NORM, _PSID, _SPEED)
 _EXT_SIGNS = (-1.0, 1.0, 1.0, -1.0, 1.0, -1.0)
 #: node's rows as the level stage's work rows: sin, cos, h cos s, chidot, phidot, F, thetadot,
-#: dt/ds of the level's new points, and their dt/ds from F as computed (`_end_model`)
-_WS, _WC, _WH, _WCHD, _WPHD, _WF, _WTHD, _WTAU, _WTAUP = range(9)
+#: dt/ds of the level's new points
+_WS, _WC, _WH, _WCHD, _WPHD, _WF, _WTHD, _WTAU = range(8)
 
 
 @cache
@@ -666,7 +666,7 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
             node[_WTHD, p], node[_WTAU, p] = thd, node[_WH, p] / thd
         if gated:  # dt/ds from F as computed, kept for the gate's sums
             for p in range(uintp(count)):
-                node[_WTAUP, p] = node[_WTAU, p]
+                scr[_TAUP, first + p * step] = node[_WTAU, p]
         # F about a slow end (`_F_about`) at the points within its reach: the first points
         # (s rising) from lo, the last from hi
         for p in range(uintp(count)):
@@ -697,8 +697,6 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
         per, turn = _level_sums(weights, L, n, stride, scr, _TAU)
         per_p, turn_p = per, turn
         if gated:
-            for p in range(uintp(count)):
-                scr[_TAUP, first + p * step] = node[_WTAUP, p]
             per_p, turn_p = _level_sums(weights, L, n, stride, scr, _TAUP)
         if (L > 0 and _agree(per, turn, per_prev, turn_prev, turn_tol)
                 and (not gated or _agree(per_p, turn_p, per_pp, turn_pp, turn_tol))):
