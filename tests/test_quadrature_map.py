@@ -323,32 +323,42 @@ SLOW_END_LAUNCHES = [
     ((-89.98699611, -0.0, -3.91584767, 7.6426736), tuple(P))]
 
 
-def test_slowly_turning_ends_near_minus_90_deg_against_40_digits(monkeypatch):
-    """Turn per cycle within 1e-7 deg, theta range within 1e-10 deg, of the same launch's
-    integrals at 40 digits (mpmath: invariants from their definitions, turning points as roots,
-    tanh-sinh quadrature; `benchmarks/quadrature_vertical.py`'s reference); the launches whose
-    sums with F as computed do not converge go to the integrator."""
+def _against_40_digits(monkeypatch, launch, params):
+    """(status, |turn per cycle error| deg, largest theta range error rad) of launch (theta0 deg,
+    thetadot0, chidot0, phidot0 rad/s; non-dimensional c, A, B) by quadrature to 15 s, against
+    the same launch's integrals at 40 digits (mpmath: invariants from their definitions,
+    turning points as roots, tanh-sinh quadrature; `benchmarks/quadrature_vertical.py`'s
+    reference); the errors are None for a launch not done."""
     import mpmath as mp
 
     monkeypatch.syspath_prepend(os.path.join(os.path.dirname(__file__), "..", "benchmarks"))
     from quadrature_vertical import mp_cycle
 
+    y0 = launch_state(*(np.array([v]) for v in launch), TU)
+    obs, status = cycle.cycles_by_quadrature(y0, np.array(params)[:, None], 15.0 / TU,
+                                             parallel=False)
+    if status[0] != cycle.DONE:
+        return status[0], None, None
+    lo, hi = obs[ob.O_TH_MIN, 0], obs[ob.O_TH_MAX, 0]
+    with mp.workdps(40):
+        turn, mlo, mhi, _ = (float(v) for v in mp_cycle(*y0[[2, 5, 6, 7], 0], lo, hi, params))
+    got = obs[ob.O_C_RAW, 0] - 2.0 * math.pi * obs[ob.O_C_WIND, 0]
+    err = abs(fold_deg(np.array([math.degrees(got - turn)]))[0])
+    return status[0], err, max(abs(lo - mlo), abs(hi - mhi))
+
+
+def test_slowly_turning_ends_near_minus_90_deg_against_40_digits(monkeypatch):
+    """Turn per cycle within 1e-7 deg, theta range within 1e-10 deg, of the same launch's
+    integrals at 40 digits (`_against_40_digits`); the launches whose sums with F as computed
+    do not converge go to the integrator."""
     for i, (launch, params) in enumerate(SLOW_END_LAUNCHES):
-        y0 = launch_state(*(np.array([v]) for v in launch), TU)
-        p = np.array(params)[:, None]
-        obs, status = cycle.cycles_by_quadrature(y0, p, 15.0 / TU, parallel=False)
+        status, err, th_err = _against_40_digits(monkeypatch, launch, params)
         if i > 0:
-            assert status[0] == cycle.UNCONVERGED, launch
+            assert status == cycle.UNCONVERGED, launch
             continue
-        assert status[0] == cycle.DONE
-        lo, hi = obs[ob.O_TH_MIN, 0], obs[ob.O_TH_MAX, 0]
-        with mp.workdps(40):
-            turn, mlo, mhi, _ = mp_cycle(*y0[[2, 5, 6, 7], 0], lo, hi, params)
-            turn, mlo, mhi = float(turn), float(mlo), float(mhi)
-        got = obs[ob.O_C_RAW, 0] - 2.0 * math.pi * obs[ob.O_C_WIND, 0]
-        err = abs(fold_deg(np.array([math.degrees(got - turn)]))[0])
+        assert status == cycle.DONE
         assert err < 1e-7, (launch, err)
-        assert max(abs(lo - mlo), abs(hi - mhi)) < math.radians(1e-10)
+        assert th_err < math.radians(1e-10)
 
 
 #: launched at rest at -89.94 to -89.95 deg, swinging up to 46-58 deg (the paper's ball): the
@@ -361,24 +371,13 @@ AT_REST_NEAR_MINUS_90 = [(-89.9480448251246, 0.0, 28.697033060468314, -25.775976
 
 
 def test_long_swings_from_rest_near_minus_90_deg_against_40_digits(monkeypatch):
-    """Turn per cycle within 5e-8 deg of the same launch's integrals at 40 digits (mpmath,
-    `benchmarks/quadrature_vertical.py`'s reference): the finest levels' points nearest a slowly
-    turning end take F from its difference about the end wherever their errors would add up
-    (`cycle._diff_reach`), not only where the end is uncertain by over 1e-13 of the swing."""
-    import mpmath as mp
-
-    monkeypatch.syspath_prepend(os.path.join(os.path.dirname(__file__), "..", "benchmarks"))
-    from quadrature_vertical import mp_cycle
-
+    """Turn per cycle within 5e-8 deg of the same launch's integrals at 40 digits
+    (`_against_40_digits`): the finest levels' points nearest a slowly turning end take F from
+    its difference about the end wherever their errors would add up (`cycle._diff_reach`), not
+    only where the end is uncertain by over 1e-13 of the swing."""
     for launch in AT_REST_NEAR_MINUS_90:
-        y0 = launch_state(*(np.array([v]) for v in launch), TU)
-        obs, status = cycle.cycles_by_quadrature(y0, P[:, None], 15.0 / TU, parallel=False)
-        assert status[0] == cycle.DONE, launch
-        lo, hi = obs[ob.O_TH_MIN, 0], obs[ob.O_TH_MAX, 0]
-        with mp.workdps(40):
-            turn = float(mp_cycle(*y0[[2, 5, 6, 7], 0], lo, hi, tuple(P))[0])
-        got = obs[ob.O_C_RAW, 0] - 2.0 * math.pi * obs[ob.O_C_WIND, 0]
-        err = abs(fold_deg(np.array([math.degrees(got - turn)]))[0])
+        status, err, _ = _against_40_digits(monkeypatch, launch, tuple(P))
+        assert status == cycle.DONE, launch
         assert err < 5e-8, (launch, err)
 
 
