@@ -37,6 +37,8 @@ def _module(text: str, name: str, folder: Path):
     """cycle.py's text as a stand-alone module: absolute imports, numba's own njit, no cache."""
     text = (text.replace("from .._jit import fetch_add, njit",
                          "from numba import njit\nfrom ballsurvey._jit import fetch_add")
+            .replace("from .._jit import alive, borrow, fetch_add, njit",
+                     "from numba import njit\nfrom ballsurvey._jit import alive, borrow, fetch_add")
             .replace("from .._jit import njit", "from numba import njit")
             .replace("from ..physics", "from ballsurvey.physics")
             .replace("from . import observer", "from ballsurvey.classify import observer")

@@ -71,7 +71,7 @@ import numba as nb
 import numpy as np
 from numba import uintp
 
-from .._jit import fetch_add, njit
+from .._jit import alive, borrow, fetch_add, njit
 from ..physics.euler import accelerations, heading_velocity, jellett, kinetic, normal_force, routh
 from . import observer as ob
 from .trig import atan2, sincos, sincos_shift  # by name: `integrate.cuda.device_twin`
@@ -555,7 +555,7 @@ def _cumulate_pair(qm, off, n, node, f1, out1, f2, out2):
 def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, sin_s, cos_s,
               weights, qm, offsets, scr, node, obs, i):
     """Launch i (non-dimensional tilt, rates) -> its observer slots obs[:, i]; returns a status.
-    scr (N_SCRATCH, MAX_N + 1) and node (N_NODE, MAX_N + 1): scratch."""
+    scr (N_SCRATCH, >= MAX_N + 1) and node (N_NODE, >= MAX_N + 1): scratch."""
     s0, c0 = math.sin(th0), math.cos(th0)
     # the energy less its constant M g a: F is a small difference near the turning points
     kin = kinetic(s0, c0, thd0, chd0, phd0, c, A, B)
@@ -849,11 +849,16 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
 #: one cache line a slot (a buffer of 64 launches, 37 kB beside the scratch rows, made the kernel
 #: 6 % slower)
 SLOT_BLOCK = 8
+#: the scratch rows' length: MAX_N + 1 points, padded to a multiple of 8 doubles, so that every
+#: row starts as the first does relative to the cache lines, and the cumulative integrals'
+#: vector loads and stores (`_cumulate`) split no more lines than the first row's (3 % of the
+#: kernel's time against rows of MAX_N + 1)
+ROW = MAX_N + 8
 
 
 @jit
-def _block(y0, params, T, stop_after, steady_tol, tabs_s, sin_s, cos_s, weights, qm, offsets,
-           lo, hi, obs, status):
+def _block(y0, params, T, stop_after, steady_tol, tabs_s_a, sin_s_a, cos_s_a, weights_a, qm_a,
+           offsets_a, lo, hi, obs, status):
     """Launches lo..hi into obs[:, lo:hi] and status[lo:hi]. Each launch's slots are a column of
     obs, whose rows lie the call's number of launches apart: at a power of two (a call of 8192
     launches) the column's N_OBS cache lines all fall in one set of the caches, which holds a
@@ -861,10 +866,15 @@ def _block(y0, params, T, stop_after, steady_tol, tabs_s, sin_s, cos_s, weights,
     launch). So a launch writes its slots into a buffer of SLOT_BLOCK launches (a cache line a
     row), copied into obs row by row once the launches are done. The slots `cycle_one` leaves
     unwritten stay NaN from the buffer's start; a launch not done has all its slots set to
-    NaN."""
-    scr = np.empty((N_SCRATCH, MAX_N + 1))
-    node = np.empty((N_NODE, MAX_N + 1))
-    buf = np.full((ob.N_OBS, SLOT_BLOCK), math.nan)  # slots no launch writes stay NaN
+    NaN. The arrays go to `cycle_one` as views that own nothing (`borrow`): each array passed to
+    a function inlined in numba's IR costs a reference-count update (an atomic add and a call)
+    at each inlined call, 6 % of the kernel's time."""
+    scr_a = np.empty((N_SCRATCH, ROW))
+    node_a = np.empty((N_NODE, ROW))
+    buf_a = np.full((ob.N_OBS, SLOT_BLOCK), math.nan)  # slots no launch writes stay NaN
+    scr, node, buf = borrow(scr_a), borrow(node_a), borrow(buf_a)
+    tabs_s, sin_s, cos_s = borrow(tabs_s_a), borrow(sin_s_a), borrow(cos_s_a)
+    weights, qm, offsets = borrow(weights_a), borrow(qm_a), borrow(offsets_a)
     for b0 in range(lo, hi, SLOT_BLOCK):
         b1 = min(hi, b0 + SLOT_BLOCK)
         for i in range(b0, b1):
@@ -879,6 +889,7 @@ def _block(y0, params, T, stop_after, steady_tol, tabs_s, sin_s, cos_s, weights,
         for q in range(ob.N_OBS):
             for i in range(b0, b1):
                 obs[q, i] = buf[q, i - b0]
+    alive((scr_a, node_a, buf_a, tabs_s_a, sin_s_a, cos_s_a, weights_a, qm_a, offsets_a))
 
 
 @njit(parallel=True, nogil=True, error_model="numpy", cache=True)
