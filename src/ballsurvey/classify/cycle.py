@@ -886,9 +886,12 @@ def _block(y0, params, T, stop_after, steady_tol, tabs_s_a, sin_s_a, cos_s_a, we
             if st != DONE:  # obs comes uninitialised (`cycles_by_quadrature`)
                 for q in range(ob.N_OBS):
                     buf[q, k] = math.nan
+        # unsigned indices (`_cumulate`): with signed ones numba's negative-index wraparound
+        # makes each row's copy a scatter, 3 % of the kernel's time
+        ub0, m = uintp(b0), uintp(b1 - b0)
         for q in range(ob.N_OBS):
-            for i in range(b0, b1):
-                obs[q, i] = buf[q, i - b0]
+            for k in range(m):
+                obs[q, ub0 + k] = buf[q, k]
     alive((scr_a, node_a, buf_a, tabs_s_a, sin_s_a, cos_s_a, weights_a, qm_a, offsets_a))
 
 
