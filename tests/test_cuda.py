@@ -343,7 +343,7 @@ T = 20.0 / tu
 cpu, st_cpu = cycle.cycles_by_quadrature(y0, params, T, stop_after=3, parallel=False)
 gpu, st_gpu = cuda.per_launch(cycle.cycle_one, y0, params, T, 3, 1e-8, cycle.tables(),
                               n_scratch=cycle.N_SCRATCH, n_node=cycle.N_NODE,
-                              n_points=cycle.MAX_N + 1, n_slots=observer.N_OBS)
+                              n_points=cycle.ROW, n_slots=observer.N_OBS)
 assert np.array_equal(st_cpu, st_gpu), (st_cpu, st_gpu)
 assert (st_cpu == cycle.DONE).sum() >= 3, st_cpu
 assert np.array_equal(np.isnan(cpu), np.isnan(gpu))

@@ -427,7 +427,7 @@ def by_quadrature(y0, params, plan: StepPlan, *, rtol=1e-9, atol=1e-12, block=64
         obs, status = cuda.per_launch(cycle.cycle_one, y0, params, plan.T_nd, stop,
                                       thresholds.steady_rate_tol, cycle.tables(),
                                       n_scratch=cycle.N_SCRATCH, n_node=cycle.N_NODE,
-                                      n_points=cycle.MAX_N + 1, n_slots=N_OBS)
+                                      n_points=cycle.ROW, n_slots=N_OBS)
     else:
         obs, status = cycle.cycles_by_quadrature(y0, params, plan.T_nd, stop_after=stop,
                                                  steady_tol=thresholds.steady_rate_tol,

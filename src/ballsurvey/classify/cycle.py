@@ -143,6 +143,14 @@ PREDICT_OVERSHOOT, PREDICT_STEP_MAX = 1.5, math.radians(30.0)
 ROOT_NOISE = 16.0
 #: a launch at rest in theta starts its search this far inside (rad)
 START_OFFSET = 1e-9
+#: doubles in a SIMD vector (AVX-512; the padding of the loops over points, `_lanes`)
+LANES = 8
+#: the scratch rows' length (scr's and node's, here and on a GPU): MAX_N + 1 points padded to
+#: whole vectors, so that every row starts as the first does relative to the cache lines: the
+#: cumulative integrals' vector loads and stores (`_cumulate`) split no more lines than the first
+#: row's (3 % of the kernel's time against rows of MAX_N + 1). (The loops padded to whole
+#: vectors, `_lanes`, run over at most MAX_N / 2 + 1 points.)
+ROW = (MAX_N + LANES) // LANES * LANES
 #: per-point scratch columns
 _TAU, _CHD, _PHD, _THD, _STH, _CTH, _TAUP = range(7)
 N_SCRATCH = 7
@@ -484,6 +492,14 @@ def _level_sums(weights, L, n, stride, scr, tau_row):
 
 
 @jit
+def _lanes(count):
+    """count rounded up to whole vectors of LANES doubles (unsigned): a loop of SIMD lanes
+    that runs over them has no scalar remainder. The level stage's 15 points at N = 16 took 8
+    in lanes and 7 one at a time, which cost more than the 8."""
+    return uintp((count + LANES - 1) // LANES * LANES)
+
+
+@jit
 def _agree(per, turn, per0, turn0, turn_tol):
     """Two levels' period and turn agree to QUAD_RTOL and turn_tol."""
     return (abs(per - per0) <= QUAD_RTOL * per
@@ -555,7 +571,7 @@ def _cumulate_pair(qm, off, n, node, f1, out1, f2, out2):
 def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, sin_s, cos_s,
               weights, qm, offsets, scr, node, obs, i):
     """Launch i (non-dimensional tilt, rates) -> its observer slots obs[:, i]; returns a status.
-    scr (N_SCRATCH, >= MAX_N + 1) and node (N_NODE, >= MAX_N + 1): scratch."""
+    scr (N_SCRATCH, ROW) and node (N_NODE, ROW): scratch."""
     s0, c0 = math.sin(th0), math.cos(th0)
     # the energy less its constant M g a: F is a small difference near the turning points
     kin = kinetic(s0, c0, thd0, chd0, phd0, c, A, B)
@@ -652,12 +668,13 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
         # cosines by `trig`), in node's rows; F must be positive at each. (Indices unsigned
         # here and below, `uintp`: numba adds no negative-index wraparound to them, which would
         # turn the loops' loads into gathers or keep them from vectorising.)
-        first, step = uintp(first), uintp(step)
-        for p in range(uintp(count)):  # gathered first: strided loads keep a loop scalar
-            k = first + p * step
+        # The loop runs over whole vectors (`_lanes`): the lanes past the last point repeat it
+        first, step, last = uintp(first), uintp(step), uintp(count - 1)
+        for p in range(_lanes(count)):  # gathered first: strided loads keep a loop scalar
+            k = first + min(p, last) * step
             node[_WS, p] = h * sin_s[k]
             node[_WH, p] = h * cos_s[k]
-        for p in range(uintp(count)):
+        for p in range(_lanes(count)):
             sth, cth = sincos_shift(s_m, c_m, node[_WS, p])
             node[_WS, p], node[_WC, p] = sth, cth
             chd, phd, f = _rates_at(sth, cth, inv)
@@ -713,13 +730,15 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
     n = FIRST_N << level
     stride = MAX_N // n
     un, ustride = uintp(n), uintp(stride)
-    for j in range(un + 1):  # the level's points, gathered into rows for a loop free of calls
-        k = j * ustride
+    # the level's points, gathered into rows for a loop free of calls, over whole vectors (the
+    # lanes past the last point repeat it: `_lanes`)
+    for j in range(_lanes(n + 1)):
+        k = min(j, un) * ustride
         node[_SS, j], node[_TAU_C, j], node[_W_TAU, j] = s_all[k], scr[_TAU, k], cos_s[k]
         node[_IN_CHD, j], node[_IN_PHD, j], node[_IN_THD, j] = scr[_CHD, k], scr[_PHD, k], \
             scr[_THD, k]
         node[_IN_STH, j], node[_IN_CTH, j] = scr[_STH, k], scr[_CTH, k]
-    for j in range(un + 1):  # SIMD lanes
+    for j in range(_lanes(n + 1)):  # SIMD lanes
         tau, chd, phd = node[_TAU_C, j], node[_IN_CHD, j], node[_IN_PHD, j]
         thd, sth, cth = node[_IN_THD, j], node[_IN_STH, j], node[_IN_CTH, j]
         thdd, chdd, phdd = accelerations(sth, cth, thd, chd, phd, c, A, B)
@@ -849,11 +868,6 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
 #: one cache line a slot (a buffer of 64 launches, 37 kB beside the scratch rows, made the kernel
 #: 6 % slower)
 SLOT_BLOCK = 8
-#: the scratch rows' length: MAX_N + 1 points, padded to a multiple of 8 doubles, so that every
-#: row starts as the first does relative to the cache lines, and the cumulative integrals'
-#: vector loads and stores (`_cumulate`) split no more lines than the first row's (3 % of the
-#: kernel's time against rows of MAX_N + 1)
-ROW = MAX_N + 8
 
 
 @jit
