@@ -58,7 +58,7 @@ def main():
         root = cycle._turning_point.py_func(
             th0 + d * cycle.START_OFFSET, d, th0, 2.0 * abs(thdd0) * a[1] ** 2,
             cycle.ROOT_NOISE * 2.2e-16 * (kin + c * abs(a[0])),
-            cycle._constants(kin - c * a[0], jellett(*a), routh(*a), c, A, B))
+            cycle._constants(kin - c * a[0], jellett(*a), routh(*a), c, A, B))[0]
         if math.isfinite(root):
             probes[count["F"]] += 1
             newton[count["F_dF"]] += 1

@@ -439,7 +439,7 @@ def test_a_turning_point_at_rounding_stops_there(monkeypatch):
         calls.clear()
         got = cycle._turning_point.py_func(y[2] + d * cycle.START_OFFSET, d, y[2],
                                            2.0 * abs(thdd), f_noise,
-                                           cycle._constants(E, J, R, *P))
+                                           cycle._constants(E, J, R, *P))[0]
         want = _brentq_end(args, y[2] + d * 1e-7, d, xtol=1e-15, rtol=1e-15)
         assert abs(got - want) < 1e-12, (th_deg, got, want)
         assert len(calls) <= 24, (th_deg, len(calls))
@@ -470,9 +470,10 @@ def test_a_turning_point_a_hair_below_the_vertical_against_brentq():
             thdd = accelerations(*args)[0]
             assert thdd > 0.0
             got = cycle._turning_point(y[2] + cycle.START_OFFSET, 1.0, y[2], 2.0 * abs(thdd),
-                                       f_noise, inv)
+                                       f_noise, inv)[0]
         else:
-            got = cycle._turning_point(y[2], 1.0, math.nan, cycle._F(y[2], inv), f_noise, inv)
+            got = cycle._turning_point(y[2], 1.0, math.nan, cycle._F(y[2], inv), f_noise,
+                                       inv)[0]
         want = _brentq_end(args, y[2] + 1e-7, 1.0, xtol=1e-16, rtol=8.9e-16)
         assert 0.0 < lim - want < 1e-9, launch
         assert abs(got - want) < 1e-13, (launch, got, want)

@@ -139,10 +139,15 @@ SEARCH_STEP, SEARCH_STEP_MAX, SEARCH_STEP_MIN = math.radians(2.0), math.radians(
 #: a predicted step reaches this far past the extrapolated root, to bracket it in one probe; at
 #: most PREDICT_STEP_MAX (rad)
 PREDICT_OVERSHOOT, PREDICT_STEP_MAX = 1.5, math.radians(30.0)
+#: a turning point takes the end's terms (`_end_at`) of the last point its search evaluated
+#: where that is within END_REUSE of it (relative; a Newton step of rounding size)
+END_REUSE = 1e-14
 #: F within this many of its rounding units (eps times the energy's terms) of 0 is a root
 ROOT_NOISE = 16.0
-#: a launch at rest in theta starts its search this far inside (rad)
-START_OFFSET = 1e-9
+#: a launch at rest in theta starts its search this far inside (rad); F there is taken to be
+#: positive without evaluating it where F's slope times that distance is START_MARGIN times F's
+#: rounding (f_noise: ROOT_NOISE units) or more
+START_OFFSET, START_MARGIN = 1e-9, 1e3
 #: doubles in a SIMD vector (AVX-512; the padding of the loops over points, `_lanes`)
 LANES = 8
 #: the scratch rows' length (scr's and node's, here and on a GPU): MAX_N + 1 points padded to
@@ -276,26 +281,28 @@ def _F(th, inv):
 @jit
 def _F_dF(th, inv):
     """F, its derivative 2 thetaddot(th, thetadot = sqrt F) (thetaddot depends on thetadot^2
-    only), and tan th."""
+    only), tan th, and the end's terms (`_end_at`) had th been the turning point."""
     sth, cth, chd, phd, f = _rates(th, inv)
     thdd = accelerations(sth, cth, math.sqrt(max(f, 0.0)), chd, phd, inv[2], inv[3], inv[4])[0]
-    return f, 2.0 * thdd, sth / cth
+    return f, 2.0 * thdd, sth / cth, (sth, cth, chd, phd, thdd)
 
 
 @jit
 def _root(a, b, x, f_noise, inv):
     """The sign change of F between a (F > 0) and b (F <= 0), from x inside: Newton kept in the
     bracket by bisection, until F is within f_noise (its rounding) of 0 or the step is
-    rounding."""
+    rounding. Returns (the root, the end's terms there: `_root_end`; those of the last point
+    evaluated are `_end_at`'s with thetadot^2 = F, within F's rounding of 0, where thetaddot
+    depends on thetadot^2 only)."""
     for _ in range(200):
-        f, df, tn = _F_dF(x, inv)
+        f, df, tn, end = _F_dF(x, inv)
         # Newton's step on F cos^2 (the same roots; its derivative over cos^2 is F' - 2 F tan):
         # F's 1 / cos^2 growth towards the vertical bends F, and Newton's method on F itself
         # creeps in from a far start
         df -= 2.0 * f * tn
         if abs(f) <= f_noise:  # a root to F's own rounding: one Newton step more is the best
             nx = x - f / df if df != 0.0 else x
-            return nx if min(a, b) <= nx <= max(a, b) else x
+            return _root_end(nx if min(a, b) <= nx <= max(a, b) else x, x, end, inv)
         if f > 0.0:
             a = x
         else:
@@ -309,19 +316,29 @@ def _root(a, b, x, f_noise, inv):
         # the step must also be short against the distance to the vertical, or a root within
         # 1e-8 rad of it ends 1e-12 rad steps up to 1e-9 rad short (Newton from the steep side)
         if abs(nx - x) <= min(1e-12 * max(1.0, abs(x)), 1e-4 * (0.5 * math.pi - abs(x))):
-            return nx if lo <= nx <= hi else x
+            return _root_end(nx if lo <= nx <= hi else x, x, end, inv)
         if not (lo < nx < hi and math.isfinite(nx)):
             nx = 0.5 * (a + b)
         if nx == x or abs(b - a) <= 4e-16 * max(1.0, abs(x)):
-            return nx
+            return _root_end(nx, x, end, inv)
         x = nx
-    return x
+    return x, _end_at(x, inv)
+
+
+@jit
+def _root_end(root, x, end, inv):
+    """(root, the end's terms there): those evaluated at x where x is within END_REUSE
+    (relative) of the root, else evaluated at the root (a slow end, whose last Newton step
+    is long)."""
+    if abs(root - x) <= END_REUSE * max(1.0, abs(x)):
+        return root, end
+    return root, _end_at(root, inv)
 
 
 @jit
 def _turning_point(start, d, ref, q_start, f_noise, inv):
-    """The first root of F from start (F > 0 there) in direction d (+-1); NaN where the tilt
-    reaches the vertical.
+    """The first root of F from start (F > 0 there) in direction d (+-1), and the end's terms
+    there (`_root`); NaN where the tilt reaches the vertical.
 
     The search follows q = F cos^2 / |theta - ref| when ref is a root of F itself (the launch at
     a turning point: q has no root there, and is linear in theta where F cos^2 is a parabola),
@@ -342,7 +359,7 @@ def _turning_point(start, d, ref, q_start, f_noise, inv):
             b = d * TILT_LIMIT
         _, cb, _, _, fb = _rates(b, inv)
         if vertical and fb > 0.0:
-            return math.nan
+            return math.nan, (0.0, 0.0, 0.0, 0.0, 0.0)
         qb = fb * cb * cb
         if deflate:
             qb /= abs(b - ref)
@@ -369,12 +386,11 @@ def _turning_point(start, d, ref, q_start, f_noise, inv):
 
 
 @jit
-def _end_tau(th, h, inv):
-    """(dt/ds, chidot, phidot, sin, cos) at a turning point th: dt/ds is the limit
-    sqrt(h / |thetaddot|)."""
+def _end_at(th, inv):
+    """The terms of a turning point th the quadrature takes: (sin, cos, chidot, phidot,
+    thetaddot at thetadot = 0)."""
     sth, cth, chd, phd, _ = _rates(th, inv)
-    thdd = accelerations(sth, cth, 0.0, chd, phd, inv[2], inv[3], inv[4])[0]
-    return math.sqrt(h / abs(thdd)), chd, phd, sth, cth
+    return sth, cth, chd, phd, accelerations(sth, cth, 0.0, chd, phd, inv[2], inv[3], inv[4])[0]
 
 
 @jit
@@ -468,10 +484,12 @@ def _root_about(t, e, end, h, inv):
 
 
 @jit_inline
-def _set_ends(scr, lo, hi, h, inv):
-    """scr's columns of the ends (0 and MAX_N): dt/ds's limit, the rates, sin and cos."""
+def _set_ends(scr, end_lo, end_hi, h):
+    """scr's columns of the ends (0 and MAX_N) from their terms (`_end_at`): dt/ds's limit
+    sqrt(h / |thetaddot|), the rates, sin and cos."""
     for k in (0, MAX_N):
-        tau, chd, phd, sth, cth = _end_tau(lo if k == 0 else hi, h, inv)
+        sth, cth, chd, phd, thdd = end_lo if k == 0 else end_hi
+        tau = math.sqrt(h / abs(thdd))
         scr[_TAU, k], scr[_CHD, k], scr[_PHD, k] = tau, chd, phd
         scr[_THD, k], scr[_STH, k], scr[_CTH, k] = 0.0, sth, cth
         scr[_TAUP, k] = tau
@@ -588,20 +606,28 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
     if thd0 == 0.0:
         d = 1.0 if thdd0 > 0.0 else -1.0
         start = th0 + d * START_OFFSET
-        if not _F(start, inv) > 0.0:
+        # F there is about its slope 2 |thdd0| times START_OFFSET: positive beyond doubt where
+        # that is START_MARGIN times F's rounding, else checked
+        if (2.0 * abs(thdd0) * START_OFFSET <= START_MARGIN * f_noise
+                and not _F(start, inv) > 0.0):
             return UNCONVERGED
         # F vanishes at th0 with slope 2 thdd0: q = F cos^2 / |theta - th0| starts at
         # 2 |thdd0| cos^2 th0
-        other = _turning_point(start, d, th0, 2.0 * abs(thdd0) * c0 * c0, f_noise, inv)
+        other, end_other = _turning_point(start, d, th0, 2.0 * abs(thdd0) * c0 * c0, f_noise,
+                                          inv)
         if not math.isfinite(other):
             return VERTICAL
+        # the launch's end from its own sine and cosine (`_end_at` would take them again)
+        chd_e, phd_e, _ = _rates_at(s0, c0, inv)
+        end_th0 = (s0, c0, chd_e, phd_e, accelerations(s0, c0, 0.0, chd_e, phd_e, c, A, B)[0])
         lo, hi = (th0, other) if d > 0.0 else (other, th0)
+        tp_lo, tp_hi = (end_th0, end_other) if d > 0.0 else (end_other, end_th0)
     else:
         f0 = _F(th0, inv)
         if not f0 > 0.0:
             return UNCONVERGED
-        lo = _turning_point(th0, -1.0, math.nan, f0 * c0 * c0, f_noise, inv)
-        hi = _turning_point(th0, 1.0, math.nan, f0 * c0 * c0, f_noise, inv)
+        lo, tp_lo = _turning_point(th0, -1.0, math.nan, f0 * c0 * c0, f_noise, inv)
+        hi, tp_hi = _turning_point(th0, 1.0, math.nan, f0 * c0 * c0, f_noise, inv)
         if not (math.isfinite(lo) and math.isfinite(hi)):
             return VERTICAL
     m, h = 0.5 * (hi + lo), 0.5 * (hi - lo)
@@ -617,7 +643,7 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
         n = FIRST_N << L
         stride = MAX_N // n
         if L == 0:  # the ends: the turning points, where dt/ds is its limit
-            _set_ends(scr, lo, hi, h, inv)
+            _set_ends(scr, tp_lo, tp_hi, h)
             # how far F's rounding leaves each turning point, f_noise / |F'| (|F'| = 2
             # |thetaddot| = 2 h / tau^2 there), against the half-range h: past
             # `END_SPREAD_LIMIT` the integrator's; F from its difference about that end at the
@@ -654,7 +680,7 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
                     return UNCONVERGED
                 s_m, c_m = math.sin(m), math.cos(m)
                 reach_lo = reach_hi = h
-                _set_ends(scr, lo, hi, h, inv)
+                _set_ends(scr, _end_at(lo, inv), _end_at(hi, inv), h)
             # within GATE_TILT of the vertical `_F_about` loses digits (its chidot cos term is a
             # difference over cos theta): a level is taken there only when the sums with F as
             # computed converge too
