@@ -30,8 +30,9 @@ from ballsurvey.units import launch_state
 PATCHES = (
     ("    s0, c0 = math.sin(th0), math.cos(th0)\n",
      "    cy0 = rdtsc()\n    s0, c0 = math.sin(th0), math.cos(th0)\n"),
-    ("    m, h = 0.5 * (hi + lo), 0.5 * (hi - lo)\n",
-     "    cy1 = rdtsc()\n    m, h = 0.5 * (hi + lo), 0.5 * (hi - lo)\n"),
+    # (led by a newline: the same line indented deeper solves a small swing's end again)
+    ("\n    m, h = 0.5 * (hi + lo), 0.5 * (hi - lo)\n",
+     "\n    cy1 = rdtsc()\n    m, h = 0.5 * (hi + lo), 0.5 * (hi - lo)\n"),
     ("    per_fine, turn_fine = per, turn\n",
      "    cy2 = rdtsc()\n    per_fine, turn_fine = per, turn\n"),
     ("    period, dchi = 2.0 * per_fine, 2.0 * turn_fine\n",
