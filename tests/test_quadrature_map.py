@@ -21,6 +21,7 @@ from ballsurvey.classify import observer as ob
 from ballsurvey.classify.labels import LABELS, fold_deg
 from ballsurvey.compose import classify, run_launches
 from ballsurvey.integrate.outcome import FIXED_FRAME, QUADRATURE
+from ballsurvey.physics.fast import N_FAST
 from ballsurvey.units import StepPlan, fields_to_si, launch_state
 
 BALL = Ball.paper()
@@ -329,12 +330,17 @@ def _against_40_digits(monkeypatch, launch, params):
     the same launch's integrals at 40 digits (mpmath: invariants from their definitions,
     turning points as roots, tanh-sinh quadrature; `benchmarks/quadrature_vertical.py`'s
     reference); the errors are None for a launch not done."""
+    return _state_against_40_digits(monkeypatch, launch_state(*(np.array([v]) for v in launch),
+                                                             TU), params)
+
+
+def _state_against_40_digits(monkeypatch, y0, params):
+    """`_against_40_digits` of a launch given as its fast state y0 (N_FAST, 1), non-dimensional."""
     import mpmath as mp
 
     monkeypatch.syspath_prepend(os.path.join(os.path.dirname(__file__), "..", "benchmarks"))
     from quadrature_vertical import mp_cycle
 
-    y0 = launch_state(*(np.array([v]) for v in launch), TU)
     obs, status = cycle.cycles_by_quadrature(y0, np.array(params)[:, None], 15.0 / TU,
                                              parallel=False)
     if status[0] != cycle.DONE:
@@ -345,6 +351,21 @@ def _against_40_digits(monkeypatch, launch, params):
     got = obs[ob.O_C_RAW, 0] - 2.0 * math.pi * obs[ob.O_C_WIND, 0]
     err = abs(fold_deg(np.array([math.degrees(got - turn)]))[0])
     return status[0], err, max(abs(lo - mlo), abs(hi - mhi))
+
+
+def test_a_turning_point_a_hair_below_the_vertical_keeps_no_stale_end(monkeypatch):
+    """A launch whose theta_max lies 3.5e-8 rad below the vertical, Newton's last step there 4e-15
+    rad: the end's terms of the step's start, 4e-15 rad off, differ from the root's by 1e-7 to
+    3e-7 (chidot grows as 1 / cos^2), which put the turn per cycle 3.7e-5 deg off (an
+    adversarial search). Either the integrator's, or within 1e-6 deg of 40 digits."""
+    y0 = np.zeros((N_FAST, 1))
+    y0[[2, 5, 6, 7], 0] = [1.5705089405580916, 0.1339239191833472, -1.4487501538211227,
+                           1.2223151224076514]  # non-dimensional
+    status, err, th_err = _state_against_40_digits(monkeypatch, y0, tuple(P))
+    assert status in (cycle.DONE, cycle.UNCONVERGED)
+    if status == cycle.DONE:
+        assert err < 1e-6, err
+        assert th_err < math.radians(1e-10)
 
 
 def test_slowly_turning_ends_near_minus_90_deg_against_40_digits(monkeypatch):
