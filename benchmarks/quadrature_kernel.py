@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
+import re
 import subprocess
 import sys
 import tempfile
@@ -35,12 +36,12 @@ REL = "src/ballsurvey/classify/cycle.py"
 
 def _module(text: str, name: str, folder: Path):
     """cycle.py's text as a stand-alone module: absolute imports, numba's own njit, no cache."""
-    text = (text.replace("from .._jit import fetch_add, njit",
-                         "from numba import njit\nfrom ballsurvey._jit import fetch_add")
-            .replace("from .._jit import alive, borrow, fetch_add, njit",
-                     "from numba import njit\nfrom ballsurvey._jit import alive, borrow, fetch_add")
-            .replace("from .._jit import njit", "from numba import njit")
-            .replace("from ..physics", "from ballsurvey.physics")
+    # `from .._jit import ..., njit` (whatever else a revision takes from it): numba's njit,
+    # the rest from the package
+    text = re.sub(r"from \.\._jit import (?:([\w, ]+), )?njit",
+                  lambda m: "from numba import njit" + (
+                      f"\nfrom ballsurvey._jit import {m.group(1)}" if m.group(1) else ""), text)
+    text = (text.replace("from ..physics", "from ballsurvey.physics")
             .replace("from . import observer", "from ballsurvey.classify import observer")
             .replace("from .trig import", "from ballsurvey.classify.trig import")
             .replace("cache=True", "cache=False"))

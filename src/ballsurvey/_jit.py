@@ -179,7 +179,6 @@ def fetch_add(typingctx, counter, delta):
     return sig, codegen
 
 
-
 @nb.extending.intrinsic
 def borrow(typingctx, arr):
     """A view of the array arr that owns nothing (no meminfo): passing it on to functions

@@ -391,11 +391,17 @@ def _turning_point(start, d, ref, q_start, f_noise, inv):
 
 
 @jit
-def _end_at(th, inv):
-    """The terms of a turning point th the quadrature takes: (sin, cos, chidot, phidot,
-    thetaddot at thetadot = 0)."""
-    sth, cth, chd, phd, _ = _rates(th, inv)
+def _end_of(sth, cth, inv):
+    """The terms of a turning point the quadrature takes, from its sine and cosine: (sin, cos,
+    chidot, phidot, thetaddot at thetadot = 0)."""
+    chd, phd, _ = _rates_at(sth, cth, inv)
     return sth, cth, chd, phd, accelerations(sth, cth, 0.0, chd, phd, inv[2], inv[3], inv[4])[0]
+
+
+@jit
+def _end_at(th, inv):
+    """`_end_of` the turning point th."""
+    return _end_of(math.sin(th), math.cos(th), inv)
 
 
 @jit
@@ -622,9 +628,7 @@ def cycle_one(th0, thd0, chd0, phd0, c, A, B, T, stop_after, steady_tol, s_all, 
                                           inv)
         if not math.isfinite(other):
             return VERTICAL
-        # the launch's end from its own sine and cosine (`_end_at` would take them again)
-        chd_e, phd_e, _ = _rates_at(s0, c0, inv)
-        end_th0 = (s0, c0, chd_e, phd_e, accelerations(s0, c0, 0.0, chd_e, phd_e, c, A, B)[0])
+        end_th0 = _end_of(s0, c0, inv)  # the launch's end, from its own sine and cosine
         lo, hi = (th0, other) if d > 0.0 else (other, th0)
         tp_lo, tp_hi = (end_th0, end_other) if d > 0.0 else (end_other, end_th0)
     else:
